@@ -1,0 +1,107 @@
+//! Physical quantities of a state: energies, strain and the reactions at the pins. All in f64.
+
+use glam::DVec3;
+
+use crate::{Model, SimError, SimParams, State};
+
+/// Energies in joules. Kinetic energy uses the Verlet velocity `(x - x_prev)/dt`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Energy {
+    pub kinetic: f64,
+    /// `sum 1/2 D (|l| - |l0|)^2` over springs.
+    pub elastic: f64,
+    /// `-sum m g . x`.
+    pub gravitational: f64,
+}
+
+impl Energy {
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.elastic + self.gravitational
+    }
+}
+
+pub fn energy(model: &Model, state: &State, params: &SimParams) -> Energy {
+    let mut energy = Energy::default();
+    for (i, mass) in model.masses.iter().enumerate() {
+        energy.kinetic += 0.5 * mass * state.velocity(i, params.dt).length_squared();
+        energy.gravitational -= mass * params.gravity.dot(state.positions[i]);
+    }
+    for (s, [a, b]) in model.spring_ends.iter().enumerate() {
+        let length = state.positions[*a as usize].distance(state.positions[*b as usize]);
+        let extension = length - model.rest_lengths[s];
+        energy.elastic += 0.5 * model.stiffnesses[s] * extension * extension;
+    }
+    energy
+}
+
+/// Largest relative elongation `(|l| - |l0|) / |l0|` over all springs, and the spring.
+pub fn max_strain(model: &Model, positions: &[DVec3]) -> (f64, usize) {
+    model
+        .spring_ends
+        .iter()
+        .enumerate()
+        .map(|(s, [a, b])| {
+            let length = positions[*a as usize].distance(positions[*b as usize]);
+            ((length - model.rest_lengths[s]) / model.rest_lengths[s], s)
+        })
+        .fold(
+            (f64::NEG_INFINITY, 0),
+            |best, x| if x.0 > best.0 { x } else { best },
+        )
+}
+
+/// A spring stretched beyond this many rest lengths means the integration has blown up.
+pub const EXPLOSION_STRETCH: f64 = 100.0;
+
+/// Checks a state for an explosion (see [`EXPLOSION_STRETCH`]) or a non-finite position.
+pub fn check_health(model: &Model, positions: &[DVec3], step: u64) -> Result<(), SimError> {
+    if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(SimError::NonFinite { step, vertex });
+    }
+    let (strain, spring) = max_strain(model, positions);
+    let stretch = strain + 1.0;
+    if stretch > EXPLOSION_STRETCH {
+        let [a, b] = model.spring_ends[spring];
+        return Err(SimError::Exploded {
+            step,
+            spring,
+            a,
+            b,
+            stretch,
+        });
+    }
+    Ok(())
+}
+
+/// The force each pin's support exerts to hold its vertex still: minus the spring forces and the
+/// weight acting on it. In static equilibrium these sum to minus the total weight.
+pub fn pin_reactions(
+    model: &Model,
+    positions: &[DVec3],
+    params: &SimParams,
+) -> Vec<(usize, DVec3)> {
+    let mut spring_force = vec![DVec3::ZERO; model.vertex_count()];
+    for (s, [a, b]) in model.spring_ends.iter().enumerate() {
+        let force = spring_force_on_a(
+            positions[*a as usize],
+            positions[*b as usize],
+            model.rest_lengths[s],
+            model.stiffnesses[s],
+        );
+        spring_force[*a as usize] += force;
+        spring_force[*b as usize] -= force;
+    }
+    (0..model.vertex_count())
+        .filter(|i| model.pinned[*i])
+        .map(|i| (i, -(spring_force[i] + model.masses[i] * params.gravity)))
+        .collect()
+}
+
+/// Force of the spring `a`-`b` on `a` (paper eq. 1 with the sign of eq. 4): pulls `a` toward `b`
+/// when stretched, pushes it away when compressed.
+#[inline]
+pub fn spring_force_on_a(a: DVec3, b: DVec3, rest_length: f64, stiffness: f64) -> DVec3 {
+    let l = a - b;
+    let length = l.length();
+    -stiffness * (length - rest_length) / length * l
+}

@@ -1,0 +1,18 @@
+//! hooke-core: the mass-spring model of Georgii & Westermann, "Mass-Spring Systems on the GPU",
+//! its scenes and meshes, and the float64 reference solver every other solver is checked against.
+
+pub mod diagnostics;
+pub mod forces;
+pub mod mesh;
+mod model;
+mod params;
+pub mod reference;
+pub mod scene;
+mod solver;
+pub mod stability;
+mod state;
+
+pub use model::{Adjacency, MassModel, Model, ModelError, ModelOptions, StiffnessModel};
+pub use params::{Drag, PointForce, SimParams, Wind};
+pub use solver::{SimError, Solver};
+pub use state::State;

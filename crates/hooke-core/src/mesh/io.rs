@@ -1,0 +1,426 @@
+//! Reading meshes from OBJ and PLY (ASCII and binary) and writing simulation frames as binary PLY.
+//!
+//! Writes go to a temporary file in the target directory that is renamed into place, so a reader
+//! (or a killed run) never sees a torn file.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::Path;
+
+use glam::DVec3;
+use ply_rs_bw::parser::Parser;
+use ply_rs_bw::ply::{
+    Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType,
+    ScalarType,
+};
+use ply_rs_bw::writer::Writer;
+
+use super::{Mesh, MeshError, MeshWarning};
+
+/// Why a mesh file could not be loaded. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshLoadError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: unsupported mesh format (expected .obj or .ply)")]
+    UnsupportedFormat { path: String },
+    #[error("{path}{}: {message}", line.map(|l| format!(" line {l}")).unwrap_or_default())]
+    Parse {
+        path: String,
+        line: Option<usize>,
+        message: String,
+    },
+    #[error(transparent)]
+    Invalid(#[from] MeshError),
+}
+
+/// Loads and validates an `.obj` or `.ply` mesh. Polygons are split into triangle fans.
+pub fn load_mesh(path: &Path) -> Result<(Mesh, Vec<MeshWarning>), MeshLoadError> {
+    let name = path.display().to_string();
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let mesh = match extension.as_deref() {
+        Some("obj") => load_obj(path, &name)?,
+        Some("ply") => load_ply(path, &name)?,
+        _ => return Err(MeshLoadError::UnsupportedFormat { path: name }),
+    };
+    let warnings = mesh.validate(&name)?;
+    Ok((mesh, warnings))
+}
+
+fn io_error(path: &str) -> impl FnOnce(std::io::Error) -> MeshLoadError + '_ {
+    move |source| MeshLoadError::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+fn fan_triangulate(polygon: &[u32], triangles: &mut Vec<[u32; 3]>) {
+    for k in 1..polygon.len().saturating_sub(1) {
+        triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+    }
+}
+
+fn load_obj(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
+    // Open ourselves so a missing file is an io error with its OS message, not tobj's generic one.
+    let mut reader = BufReader::new(File::open(path).map_err(io_error(name))?);
+    let options = tobj::LoadOptions {
+        triangulate: false,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, _materials) =
+        tobj::load_obj_buf(&mut reader, &options, |_| Ok(Default::default())).map_err(|error| {
+            MeshLoadError::Parse {
+                path: name.to_owned(),
+                line: locate_obj_error(path, error),
+                message: error.to_string(),
+            }
+        })?;
+
+    let mut mesh = Mesh::default();
+    for model in models {
+        let offset = mesh.positions.len() as u32;
+        mesh.positions.extend(
+            model
+                .mesh
+                .positions
+                .chunks_exact(3)
+                .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))),
+        );
+        let indices: Vec<u32> = model.mesh.indices.iter().map(|i| i + offset).collect();
+        if model.mesh.face_arities.is_empty() {
+            mesh.triangles
+                .extend(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
+        } else {
+            let mut start = 0usize;
+            for &arity in &model.mesh.face_arities {
+                let end = start + arity as usize;
+                fan_triangulate(&indices[start..end], &mut mesh.triangles);
+                start = end;
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// tobj reports what went wrong but not where; find the first face line with a bad vertex
+/// reference so the user gets a line number. Only runs on the error path.
+fn locate_obj_error(path: &Path, error: tobj::LoadError) -> Option<usize> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let mut vertex_count = 0i64;
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                vertex_count += 1;
+                if error == tobj::LoadError::PositionParseError
+                    && words.clone().take(3).any(|w| w.parse::<f64>().is_err())
+                {
+                    return Some(number + 1);
+                }
+            }
+            Some("f")
+                if error == tobj::LoadError::FaceVertexOutOfBounds
+                    || error == tobj::LoadError::FaceParseError =>
+            {
+                let bad =
+                    words.any(
+                        |w| match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
+                            Some(i) if i > 0 => i > vertex_count,
+                            Some(i) if i < 0 => -i > vertex_count,
+                            _ => true,
+                        },
+                    );
+                if bad {
+                    return Some(number + 1);
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+fn load_ply(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
+    let mut reader = BufReader::new(File::open(path).map_err(io_error(name))?);
+    let parse_error = |message: String| MeshLoadError::Parse {
+        path: name.to_owned(),
+        line: None,
+        message,
+    };
+    let ply = Parser::<DefaultElement>::new()
+        .read_ply(&mut reader)
+        .map_err(|e| parse_error(e.to_string()))?;
+
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| parse_error("no 'vertex' element".into()))?;
+    let mut mesh = Mesh::default();
+    for (index, vertex) in vertices.iter().enumerate() {
+        let coordinate = |axis: &str| -> Result<f64, MeshLoadError> {
+            vertex.get(axis).and_then(scalar_as_f64).ok_or_else(|| {
+                parse_error(format!("vertex {index} has no numeric '{axis}' property"))
+            })
+        };
+        mesh.positions.push(DVec3::new(
+            coordinate("x")?,
+            coordinate("y")?,
+            coordinate("z")?,
+        ));
+    }
+
+    let faces = ply
+        .payload
+        .get("face")
+        .ok_or_else(|| parse_error("no 'face' element".into()))?;
+    for (index, face) in faces.iter().enumerate() {
+        let list = face
+            .get("vertex_indices")
+            .or_else(|| face.get("vertex_index"))
+            .ok_or_else(|| parse_error(format!("face {index} has no 'vertex_indices' list")))?;
+        let polygon = list_as_indices(list).ok_or_else(|| {
+            parse_error(format!(
+                "face {index}: 'vertex_indices' must be a list of non-negative integers"
+            ))
+        })?;
+        if polygon.len() < 3 {
+            return Err(parse_error(format!(
+                "face {index} has {} vertices; a face needs at least 3",
+                polygon.len()
+            )));
+        }
+        fan_triangulate(&polygon, &mut mesh.triangles);
+    }
+    Ok(mesh)
+}
+
+fn scalar_as_f64(property: &Property) -> Option<f64> {
+    Some(match *property {
+        Property::Float(v) => f64::from(v),
+        Property::Double(v) => v,
+        Property::Char(v) => f64::from(v),
+        Property::UChar(v) => f64::from(v),
+        Property::Short(v) => f64::from(v),
+        Property::UShort(v) => f64::from(v),
+        Property::Int(v) => f64::from(v),
+        Property::UInt(v) => f64::from(v),
+        _ => return None,
+    })
+}
+
+fn list_as_indices(property: &Property) -> Option<Vec<u32>> {
+    fn convert<T: Copy + TryInto<u32>>(values: &[T]) -> Option<Vec<u32>> {
+        values.iter().map(|v| (*v).try_into().ok()).collect()
+    }
+    match property {
+        Property::ListChar(v) => convert(v),
+        Property::ListUChar(v) => convert(v),
+        Property::ListShort(v) => convert(v),
+        Property::ListUShort(v) => convert(v),
+        Property::ListInt(v) => convert(v),
+        Property::ListUInt(v) => convert(v),
+        _ => None,
+    }
+}
+
+/// Writes one simulation frame (float32 positions + faces) as binary PLY, atomically.
+pub fn write_ply_frame(
+    path: &Path,
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
+    let vertex_properties = ["x", "y", "z"].map(|n| (n, ScalarType::Float));
+    let vertices = positions.iter().map(|p| {
+        let mut element = DefaultElement::new();
+        for (name, value) in ["x", "y", "z"].iter().zip(p.to_array()) {
+            element.insert((*name).to_owned(), Property::Float(value as f32));
+        }
+        element
+    });
+    write_ply(path, &vertex_properties, vertices.collect(), triangles)
+}
+
+/// Writes a resumable state (float64 current and previous positions + faces) as binary PLY, atomically.
+pub fn write_ply_state(
+    path: &Path,
+    positions: &[DVec3],
+    previous_positions: &[DVec3],
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
+    const NAMES: [&str; 6] = ["x", "y", "z", "prev_x", "prev_y", "prev_z"];
+    let vertex_properties = NAMES.map(|n| (n, ScalarType::Double));
+    let vertices = positions.iter().zip(previous_positions).map(|(p, q)| {
+        let mut element = DefaultElement::new();
+        let values = p.to_array().into_iter().chain(q.to_array());
+        for (name, value) in NAMES.iter().zip(values) {
+            element.insert((*name).to_owned(), Property::Double(value));
+        }
+        element
+    });
+    write_ply(path, &vertex_properties, vertices.collect(), triangles)
+}
+
+fn write_ply(
+    path: &Path,
+    vertex_properties: &[(&str, ScalarType)],
+    vertices: Vec<DefaultElement>,
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
+    let mut ply = Ply::<DefaultElement>::new();
+    ply.header.encoding = Encoding::BinaryLittleEndian;
+    ply.header.comments.push("written by hooke".to_owned());
+    let mut vertex = ElementDef::new("vertex".to_owned());
+    for (name, scalar) in vertex_properties {
+        vertex.properties.add(PropertyDef::new(
+            (*name).to_owned(),
+            PropertyType::Scalar(scalar.clone()),
+        ));
+    }
+    ply.header.elements.add(vertex);
+    let mut face = ElementDef::new("face".to_owned());
+    face.properties.add(PropertyDef::new(
+        "vertex_indices".to_owned(),
+        PropertyType::List(ScalarType::UChar, ScalarType::UInt),
+    ));
+    ply.header.elements.add(face);
+    ply.payload.insert("vertex".to_owned(), vertices);
+    let faces = triangles
+        .iter()
+        .map(|t| {
+            let mut element = DefaultElement::new();
+            element.insert("vertex_indices".to_owned(), Property::ListUInt(t.to_vec()));
+            element
+        })
+        .collect();
+    ply.payload.insert("face".to_owned(), faces);
+
+    let directory = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let temporary = tempfile::NamedTempFile::new_in(directory)?;
+    {
+        let mut writer = BufWriter::new(temporary.as_file());
+        Writer::<DefaultElement>::new().write_ply(&mut writer, &mut ply)?;
+        writer.flush()?;
+    }
+    temporary.as_file().sync_data()?;
+    temporary.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{GridPlane, grid};
+
+    fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> std::path::PathBuf {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write test file");
+        path
+    }
+
+    #[test]
+    fn obj_quads_are_fan_triangulated() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = write(
+            &dir,
+            "quad.obj",
+            "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3 4\n",
+        );
+        let (mesh, warnings) = load_mesh(&path).expect("loads");
+        assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        assert!(warnings.is_empty());
+    }
+
+    #[test]
+    fn obj_out_of_range_face_names_file_and_line() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = write(
+            &dir,
+            "bad.obj",
+            "v 0 0 0\nv 1 0 0\nv 1 0 1\n# c\nf 1 2 3\nf 1 2 9\n",
+        );
+        let message = load_mesh(&path).unwrap_err().to_string();
+        assert!(message.contains("bad.obj line 6"), "{message}");
+    }
+
+    #[test]
+    fn obj_nan_vertex_is_named() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = write(&dir, "nan.obj", "v 0 0 0\nv nan 0 0\nv 1 0 1\nf 1 2 3\n");
+        let message = load_mesh(&path).unwrap_err().to_string();
+        assert!(
+            message.contains("nan.obj") && message.contains("vertex 1"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn ascii_ply_loads_and_bad_index_is_reported() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+        let path = write(
+            &dir,
+            "ok.ply",
+            &format!("{header}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"),
+        );
+        let (mesh, _) = load_mesh(&path).expect("loads");
+        assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
+        let path = write(
+            &dir,
+            "bad.ply",
+            &format!("{header}0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"),
+        );
+        let message = load_mesh(&path).unwrap_err().to_string();
+        assert!(
+            message.contains("bad.ply: triangle 0 uses vertex index 7"),
+            "{message}"
+        );
+    }
+
+    #[test]
+    fn truncated_binary_ply_is_an_error_not_a_panic() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mesh = grid(3, 3, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
+        let path = dir.path().join("frame.ply");
+        write_ply_frame(&path, &mesh.positions, &mesh.triangles).expect("write");
+        let bytes = std::fs::read(&path).expect("read");
+        std::fs::write(&path, &bytes[..bytes.len() - 7]).expect("truncate");
+        assert!(load_mesh(&path).is_err());
+    }
+
+    #[test]
+    fn binary_ply_frame_round_trips() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mesh = grid(4, 3, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
+        let path = dir.path().join("frame.ply");
+        write_ply_frame(&path, &mesh.positions, &mesh.triangles).expect("write");
+        let (loaded, _) = load_mesh(&path).expect("read back");
+        assert_eq!(loaded.triangles, mesh.triangles);
+        for (a, b) in loaded.positions.iter().zip(&mesh.positions) {
+            // Frames store float32: exact to f32 rounding of values of order 1.
+            assert!((*a - *b).length() < 1e-6);
+        }
+        let names: Vec<_> = std::fs::read_dir(dir.path()).expect("list").collect();
+        assert_eq!(names.len(), 1, "no temporary file left behind");
+    }
+
+    #[test]
+    fn unknown_extension_is_rejected() {
+        let err = load_mesh(Path::new("cloth.stl")).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "cloth.stl: unsupported mesh format (expected .obj or .ply)"
+        );
+    }
+}

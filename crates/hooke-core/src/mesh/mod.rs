@@ -1,0 +1,339 @@
+//! Triangle meshes: the surface a mass-spring system is built from.
+//!
+//! A [`Mesh`] is a flat list of vertex positions (metres) and triangles (vertex indices).
+//! Its unique edges become springs (paper Section 2), its vertices point masses.
+
+mod generate;
+mod io;
+
+pub use generate::{GridPlane, grid, irregular};
+pub use io::{MeshLoadError, load_mesh, write_ply_frame, write_ply_state};
+
+use glam::DVec3;
+
+/// A triangulated surface.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions in metres; length `n_vertices`.
+    pub positions: Vec<DVec3>,
+    /// Triangles as indices into `positions`; length `n_triangles`.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Something wrong with a mesh that makes it unusable as a mass-spring system.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MeshError {
+    #[error("{source_name}: mesh has no triangles")]
+    Empty { source_name: String },
+    #[error(
+        "{source_name}: triangle {triangle} uses vertex index {index}, out of range (mesh has {vertex_count} vertices)"
+    )]
+    IndexOutOfRange {
+        source_name: String,
+        triangle: usize,
+        index: u32,
+        vertex_count: usize,
+    },
+    #[error("{source_name}: vertex {vertex} has a non-finite coordinate {position:?}")]
+    NonFiniteVertex {
+        source_name: String,
+        vertex: usize,
+        position: [f64; 3],
+    },
+    #[error("{source_name}: triangle {triangle} is degenerate ({reason})")]
+    DegenerateTriangle {
+        source_name: String,
+        triangle: usize,
+        reason: String,
+    },
+    #[error(
+        "{source_name}: edge {a}-{b} has zero length (both vertices at {position:?}); a spring needs a rest length"
+    )]
+    ZeroLengthEdge {
+        source_name: String,
+        a: u32,
+        b: u32,
+        position: [f64; 3],
+    },
+}
+
+/// A property of a mesh that is allowed but worth telling the user about.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MeshWarning {
+    /// An edge shared by more than two triangles; its spring is still created once.
+    NonManifoldEdge { a: u32, b: u32, triangle_count: u32 },
+    /// Vertices no triangle uses: free point masses without springs.
+    UnreferencedVertices { count: usize, first: u32 },
+}
+
+impl std::fmt::Display for MeshWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NonManifoldEdge {
+                a,
+                b,
+                triangle_count,
+            } => write!(
+                f,
+                "edge {a}-{b} is non-manifold (shared by {triangle_count} triangles)"
+            ),
+            Self::UnreferencedVertices { count, first } => write!(
+                f,
+                "{count} vertices are used by no triangle (first: vertex {first}); they fall freely"
+            ),
+        }
+    }
+}
+
+/// A unique undirected edge `a < b` and how many triangles share it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Edge {
+    pub a: u32,
+    pub b: u32,
+    pub triangle_count: u32,
+}
+
+/// Twice the area below which a triangle counts as degenerate, relative to its longest edge squared.
+/// A sliver this thin has no meaningful normal and makes its springs nearly collinear.
+const DEGENERATE_AREA_RATIO: f64 = 1e-12;
+
+impl Mesh {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Unique undirected edges, sorted by `(a, b)`, derived by sorting the triangles' edge keys.
+    pub fn edges(&self) -> Vec<Edge> {
+        let mut keys: Vec<u64> = Vec::with_capacity(self.triangles.len() * 3);
+        for t in &self.triangles {
+            for (p, q) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                let (a, b) = if p < q { (p, q) } else { (q, p) };
+                keys.push((u64::from(a) << 32) | u64::from(b));
+            }
+        }
+        keys.sort_unstable();
+        let mut edges: Vec<Edge> = Vec::with_capacity(keys.len() / 2 + 1);
+        for key in keys {
+            let (a, b) = ((key >> 32) as u32, key as u32);
+            match edges.last_mut() {
+                Some(last) if last.a == a && last.b == b => last.triangle_count += 1,
+                _ => edges.push(Edge {
+                    a,
+                    b,
+                    triangle_count: 1,
+                }),
+            }
+        }
+        edges
+    }
+
+    /// Checks that the mesh can be simulated; `source_name` (a file name or generator) is put in every message.
+    pub fn validate(&self, source_name: &str) -> Result<Vec<MeshWarning>, MeshError> {
+        let source_name = source_name.to_owned();
+        if self.triangles.is_empty() {
+            return Err(MeshError::Empty { source_name });
+        }
+        if let Some((vertex, p)) = self
+            .positions
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !p.is_finite())
+        {
+            return Err(MeshError::NonFiniteVertex {
+                source_name,
+                vertex,
+                position: p.to_array(),
+            });
+        }
+        let vertex_count = self.positions.len();
+        let mut referenced = vec![false; vertex_count];
+        for (triangle, t) in self.triangles.iter().enumerate() {
+            if let Some(&index) = t.iter().find(|&&i| i as usize >= vertex_count) {
+                return Err(MeshError::IndexOutOfRange {
+                    source_name,
+                    triangle,
+                    index,
+                    vertex_count,
+                });
+            }
+            if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
+                return Err(MeshError::DegenerateTriangle {
+                    source_name,
+                    triangle,
+                    reason: format!("repeats a vertex: {t:?}"),
+                });
+            }
+            let [p0, p1, p2] = t.map(|i| self.positions[i as usize]);
+            for (a, b, pa, pb) in [
+                (t[0], t[1], p0, p1),
+                (t[1], t[2], p1, p2),
+                (t[2], t[0], p2, p0),
+            ] {
+                if pa == pb {
+                    return Err(MeshError::ZeroLengthEdge {
+                        source_name,
+                        a: a.min(b),
+                        b: a.max(b),
+                        position: pa.to_array(),
+                    });
+                }
+            }
+            let longest_squared = (p1 - p0)
+                .length_squared()
+                .max((p2 - p1).length_squared())
+                .max((p0 - p2).length_squared());
+            let twice_area = (p1 - p0).cross(p2 - p0).length();
+            if twice_area <= DEGENERATE_AREA_RATIO * longest_squared {
+                return Err(MeshError::DegenerateTriangle {
+                    source_name,
+                    triangle,
+                    reason: format!(
+                        "its vertices {t:?} are collinear (area {:.3e} m^2)",
+                        twice_area / 2.0
+                    ),
+                });
+            }
+            for &i in t {
+                referenced[i as usize] = true;
+            }
+        }
+        let mut warnings: Vec<MeshWarning> = self
+            .edges()
+            .into_iter()
+            .filter(|e| e.triangle_count > 2)
+            .map(|e| MeshWarning::NonManifoldEdge {
+                a: e.a,
+                b: e.b,
+                triangle_count: e.triangle_count,
+            })
+            .collect();
+        let unreferenced = referenced.iter().filter(|r| !**r).count();
+        if let Some(first) = referenced.iter().position(|r| !r) {
+            warnings.push(MeshWarning::UnreferencedVertices {
+                count: unreferenced,
+                first: first as u32,
+            });
+        }
+        Ok(warnings)
+    }
+
+    /// Per-vertex valence (number of unique incident edges).
+    pub fn valences(&self) -> Vec<u32> {
+        let mut valence = vec![0u32; self.positions.len()];
+        for e in self.edges() {
+            valence[e.a as usize] += 1;
+            valence[e.b as usize] += 1;
+        }
+        valence
+    }
+
+    /// Area of each triangle in m^2.
+    pub fn triangle_areas(&self) -> Vec<f64> {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [p0, p1, p2] = t.map(|i| self.positions[i as usize]);
+                0.5 * (p1 - p0).cross(p2 - p0).length()
+            })
+            .collect()
+    }
+
+    /// Axis-aligned bounding box `(min, max)`.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.positions.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> Mesh {
+        Mesh {
+            positions: vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 1.0),
+                DVec3::new(0.0, 0.0, 1.0),
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    #[test]
+    fn square_has_five_unique_edges_with_shared_diagonal() {
+        let edges = square().edges();
+        assert_eq!(edges.len(), 5);
+        let diagonal = edges
+            .iter()
+            .find(|e| (e.a, e.b) == (0, 2))
+            .expect("diagonal 0-2");
+        assert_eq!(diagonal.triangle_count, 2);
+    }
+
+    #[test]
+    fn out_of_range_index_names_triangle_and_count() {
+        let mut mesh = square();
+        mesh.triangles[1] = [0, 2, 9];
+        let err = mesh.validate("sq.obj").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "sq.obj: triangle 1 uses vertex index 9, out of range (mesh has 4 vertices)"
+        );
+    }
+
+    #[test]
+    fn nan_coordinate_is_rejected() {
+        let mut mesh = square();
+        mesh.positions[2].y = f64::NAN;
+        assert!(matches!(
+            mesh.validate("m").unwrap_err(),
+            MeshError::NonFiniteVertex { vertex: 2, .. }
+        ));
+    }
+
+    #[test]
+    fn collinear_and_repeated_triangles_are_degenerate() {
+        let mut mesh = square();
+        mesh.positions[3] = DVec3::new(0.5, 0.0, 0.5);
+        assert!(matches!(
+            mesh.validate("m").unwrap_err(),
+            MeshError::DegenerateTriangle { triangle: 1, .. }
+        ));
+        let mut mesh = square();
+        mesh.triangles[0] = [0, 1, 1];
+        assert!(matches!(
+            mesh.validate("m").unwrap_err(),
+            MeshError::DegenerateTriangle { triangle: 0, .. }
+        ));
+    }
+
+    #[test]
+    fn coincident_vertices_give_zero_length_edge() {
+        let mut mesh = square();
+        mesh.positions[3] = mesh.positions[2];
+        assert!(matches!(
+            mesh.validate("m").unwrap_err(),
+            MeshError::ZeroLengthEdge { a: 2, b: 3, .. }
+        ));
+    }
+
+    #[test]
+    fn non_manifold_edge_is_a_warning() {
+        let mut mesh = square();
+        mesh.positions.push(DVec3::new(0.5, 1.0, 0.5));
+        mesh.triangles.push([0, 2, 4]);
+        let warnings = mesh.validate("m").expect("valid with warning");
+        assert_eq!(
+            warnings,
+            vec![MeshWarning::NonManifoldEdge {
+                a: 0,
+                b: 2,
+                triangle_count: 3
+            }]
+        );
+    }
+}

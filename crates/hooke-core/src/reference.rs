@@ -1,0 +1,99 @@
+//! The float64 reference solver: single-threaded and written for clarity, the oracle of every test.
+//!
+//! One step is the paper's Section 2 verbatim: total force (eq. 4)
+//! `F_tot = F_ext - sum_j F_ij - c (x(t) - x(t-dt))/dt`, then Verlet (eq. 3)
+//! `x(t+dt) = F_tot/m dt^2 + 2 x(t) - x(t-dt)`. Pinned vertices keep their position.
+
+use glam::DVec3;
+
+use crate::diagnostics::spring_force_on_a;
+use crate::forces::add_external_forces;
+use crate::{Model, SimError, SimParams, Solver, State};
+
+#[derive(Debug)]
+pub struct ReferenceSolver {
+    model: Model,
+    params: SimParams,
+    state: State,
+    forces: Vec<DVec3>,
+    steps_taken: u64,
+}
+
+impl ReferenceSolver {
+    pub fn new(model: &Model, params: &SimParams) -> Self {
+        Self {
+            state: State::at_rest(model.initial_positions.clone()),
+            forces: vec![DVec3::ZERO; model.vertex_count()],
+            model: model.clone(),
+            params: params.clone(),
+            steps_taken: 0,
+        }
+    }
+
+    fn step_once(&mut self) -> Result<(), SimError> {
+        let (model, params, state) = (&self.model, &self.params, &mut self.state);
+        self.forces.fill(DVec3::ZERO);
+        add_external_forces(model, state, params, &mut self.forces);
+        for (s, [a, b]) in model.spring_ends.iter().enumerate() {
+            let (a, b) = (*a as usize, *b as usize);
+            let force = spring_force_on_a(
+                state.positions[a],
+                state.positions[b],
+                model.rest_lengths[s],
+                model.stiffnesses[s],
+            );
+            self.forces[a] += force;
+            self.forces[b] -= force;
+        }
+        let dt = params.dt;
+        self.steps_taken += 1;
+        for i in 0..model.vertex_count() {
+            let x = state.positions[i];
+            let x_previous = state.previous_positions[i];
+            let next = if model.pinned[i] {
+                x
+            } else {
+                let total = self.forces[i] - params.damping * (x - x_previous) / dt;
+                total / model.masses[i] * dt * dt + 2.0 * x - x_previous
+            };
+            if !next.is_finite() {
+                return Err(SimError::NonFinite {
+                    step: self.steps_taken,
+                    vertex: i,
+                });
+            }
+            state.previous_positions[i] = x;
+            state.positions[i] = next;
+        }
+        Ok(())
+    }
+}
+
+impl Solver for ReferenceSolver {
+    fn describe(&self) -> String {
+        "reference (f64, 1 thread)".to_owned()
+    }
+
+    fn set_params(&mut self, params: &SimParams) {
+        self.params = params.clone();
+    }
+
+    fn step(&mut self, steps: u32) -> Result<(), SimError> {
+        for _ in 0..steps {
+            self.step_once()?;
+        }
+        Ok(())
+    }
+
+    fn read_state(&self) -> State {
+        self.state.clone()
+    }
+
+    fn write_state(&mut self, state: &State) {
+        self.state = state.clone();
+    }
+
+    fn steps_taken(&self) -> u64 {
+        self.steps_taken
+    }
+}

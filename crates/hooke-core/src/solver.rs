@@ -1,0 +1,44 @@
+//! What every solver (f64 reference, CPU, later GPU) offers the rest of hooke.
+
+use crate::{SimParams, State};
+
+/// The simulation left the range where its numbers mean anything.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SimError {
+    #[error(
+        "step {step}: vertex {vertex} reached a non-finite position; the time step is too large for the stiffness, or a force is NaN"
+    )]
+    NonFinite { step: u64, vertex: usize },
+    #[error(
+        "step {step}: the simulation exploded: spring {spring} (vertices {a}-{b}) is stretched to {stretch:.1e} times its rest length"
+    )]
+    Exploded {
+        step: u64,
+        spring: usize,
+        a: u32,
+        b: u32,
+        stretch: f64,
+    },
+}
+
+/// Advances a mass-spring system. A solver owns its state, wherever that lives (CPU or GPU
+/// memory): stepping never moves it, and reading it back is an explicit call.
+pub trait Solver: Send {
+    /// A short description such as `"cpu scatter, 2 threads"`.
+    fn describe(&self) -> String;
+
+    /// Takes new parameters; they hold for every following step.
+    fn set_params(&mut self, params: &SimParams);
+
+    /// Advances `steps` time steps. Fails at the first step that produced a non-finite position.
+    fn step(&mut self, steps: u32) -> Result<(), SimError>;
+
+    /// Copies the current state out of the solver (a read-back for solvers whose state is remote).
+    fn read_state(&self) -> State;
+
+    /// Replaces the solver's state.
+    fn write_state(&mut self, state: &State);
+
+    /// Steps taken since the solver was built.
+    fn steps_taken(&self) -> u64;
+}
