@@ -1,1 +1,638 @@
-pub fn placeholder_until_solver() {}
+//! hooke-cpu: the fast float32 CPU solver, multithreaded with rayon, with the paper's two data
+//! structures chosen at run time (Section 4):
+//!
+//! - [`Method::Gather`] (PCA, 4.1): each vertex loops over its springs and sums their forces,
+//!   so every spring force is computed twice; then Verlet. One pass over the vertices.
+//! - [`Method::Scatter`] (ECA, 4.2): each spring force is computed once into a force buffer; then
+//!   each vertex accumulates the forces of its incident springs (the "incidence" accumulation:
+//!   a fixed per-vertex order instead of atomics, so results are bit-identical across runs and
+//!   thread counts) and integrates. Two passes.
+//!
+//! Both use the same spring arithmetic and the same per-vertex summation order, so gather and
+//! scatter produce bit-identical states; see [`kernels`] for why.
+#![allow(unsafe_code)] // Unchecked gathers in `kernels`; every index is checked when tables are built.
+
+mod external;
+pub mod kernels;
+pub mod layout;
+
+use std::time::{Duration, Instant};
+
+use glam::DVec3;
+use hooke_core::{Model, SimError, SimParams, Solver, State};
+use rayon::prelude::*;
+
+use external::ExternalForces;
+use kernels::{
+    B_END, Block, ForceChunk, GatherTable, IncidenceTable, Integrator, Soa, SpringTable, Stiffness,
+    VertexChunk,
+};
+use layout::{LANES, Numbering, Slices, VertexOrder};
+
+/// Which of the paper's data structures computes the spring forces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    Gather,
+    Scatter,
+}
+
+impl Method {
+    pub const ALL: [Method; 2] = [Method::Gather, Method::Scatter];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Gather => "gather",
+            Self::Scatter => "scatter",
+        }
+    }
+}
+
+/// How to build a [`CpuSolver`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CpuOptions {
+    pub method: Method,
+    /// Worker threads; `None` uses rayon's default (one per core, or `RAYON_NUM_THREADS`).
+    pub threads: Option<usize>,
+    pub order: VertexOrder,
+}
+
+impl Default for CpuOptions {
+    fn default() -> Self {
+        Self {
+            method: Method::Scatter,
+            threads: None,
+            order: VertexOrder::Mesh,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum CpuError {
+    #[error("could not start {threads} worker threads: {source}")]
+    ThreadPool {
+        threads: usize,
+        source: rayon::ThreadPoolBuildError,
+    },
+}
+
+/// Wall time of each phase of one step (phases run as separate passes to be measurable).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseTimes {
+    /// Point forces, drags and wind (zero when there are none).
+    pub external: Duration,
+    pub force_calculation: Duration,
+    /// Scatter only: summing each vertex's spring forces.
+    pub force_accumulation: Option<Duration>,
+    pub integration: Duration,
+}
+
+impl PhaseTimes {
+    pub fn total(&self) -> Duration {
+        self.external
+            + self.force_calculation
+            + self.force_accumulation.unwrap_or_default()
+            + self.integration
+    }
+}
+
+/// Bytes the solver holds, by role (the paper's Table 1 from the real allocations).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryUse {
+    /// Current and previous positions.
+    pub positions: usize,
+    /// Adjacency (gather) or springs plus incidence (scatter).
+    pub topology: usize,
+    /// Per-spring force buffer (scatter) and per-vertex integration constants.
+    pub per_step: usize,
+}
+
+impl MemoryUse {
+    pub fn total(&self) -> usize {
+        self.positions + self.topology + self.per_step
+    }
+}
+
+/// Vertex slices per parallel task: 1024 vertices, small enough to balance two threads on the
+/// smallest benchmark mesh and large enough that task overhead stays well under 1%.
+const SLICES_PER_TASK: usize = 128;
+/// Spring rows per parallel task (4096 springs).
+const SPRING_ROWS_PER_TASK: usize = 512;
+
+enum Topology {
+    Gather(GatherTable),
+    Scatter {
+        springs: SpringTable,
+        incidence: IncidenceTable,
+        /// One row more than `springs`: the last row stays zero for padding entries.
+        spring_forces: Soa,
+    },
+}
+
+/// The float32 multithreaded solver.
+pub struct CpuSolver {
+    options: CpuOptions,
+    pool: rayon::ThreadPool,
+    model: Model,
+    numbering: Numbering,
+    topology: Topology,
+    integrator: Integrator,
+    params: SimParams,
+    external: Option<ExternalForces>,
+    extra_forces: Soa,
+    /// Per-vertex net force, used only by the phase-separated step.
+    phase_forces: Soa,
+    /// `x(t)`.
+    current: Soa,
+    /// Receives `x(t + dt)`; swapped with `current` after each step.
+    next: Soa,
+    /// `x(t) - x(t - dt)`, updated in place (see [`kernels`] for why not `x(t - dt)`).
+    delta: Soa,
+    steps_taken: u64,
+}
+
+impl std::fmt::Debug for CpuSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+fn is_uniform(stiffnesses: &[f64]) -> bool {
+    stiffnesses.windows(2).all(|w| w[0] == w[1])
+}
+
+fn into_blocks<T: Copy + Default>(values: Vec<T>) -> Vec<[T; LANES]> {
+    values
+        .chunks(LANES)
+        .map(|c| std::array::from_fn(|lane| c.get(lane).copied().unwrap_or_default()))
+        .collect()
+}
+
+impl CpuSolver {
+    pub fn new(model: &Model, params: &SimParams, options: CpuOptions) -> Result<Self, CpuError> {
+        let mut builder = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("hooke-cpu-{i}"));
+        if let Some(threads) = options.threads {
+            builder = builder.num_threads(threads);
+        }
+        let pool = builder.build().map_err(|source| CpuError::ThreadPool {
+            threads: options.threads.unwrap_or(0),
+            source,
+        })?;
+        let numbering = Numbering::new(model, options.order);
+        let slices = numbering.slice_count();
+        let topology = match options.method {
+            Method::Gather => Topology::Gather(gather_table(model, &numbering)),
+            Method::Scatter => {
+                let (springs, incidence) = scatter_tables(model, &numbering);
+                let spring_forces = Soa::zeros(springs.a.len() + 1);
+                Topology::Scatter {
+                    springs,
+                    incidence,
+                    spring_forces,
+                }
+            }
+        };
+        let mut solver = Self {
+            options,
+            pool,
+            numbering,
+            topology,
+            integrator: Integrator {
+                force_scale: Vec::new(),
+                velocity_scale: Vec::new(),
+                gravity_step: [0.0; 3],
+            },
+            params: params.clone(),
+            external: None,
+            extra_forces: Soa::default(),
+            phase_forces: Soa::default(),
+            current: Soa::zeros(slices),
+            next: Soa::zeros(slices),
+            delta: Soa::zeros(slices),
+            model: model.clone(),
+            steps_taken: 0,
+        };
+        solver.set_params(params);
+        solver.write_state(&State::at_rest(model.initial_positions.clone()));
+        Ok(solver)
+    }
+
+    pub fn options(&self) -> CpuOptions {
+        self.options
+    }
+
+    pub fn threads(&self) -> usize {
+        self.pool.current_num_threads()
+    }
+
+    pub fn memory(&self) -> MemoryUse {
+        let positions = self.current.bytes() + self.next.bytes() + self.delta.bytes();
+        let integration = 2 * self.numbering.slice_count() * std::mem::size_of::<Block>();
+        let external = self
+            .external
+            .as_ref()
+            .map_or(0, |e| e.bytes() + self.extra_forces.bytes());
+        let (topology, forces) = match &self.topology {
+            Topology::Gather(t) => (
+                std::mem::size_of_val(t.neighbor.as_slice())
+                    + std::mem::size_of_val(t.rest_length.as_slice())
+                    + t.stiffness.bytes()
+                    + std::mem::size_of_val(t.slices.slice_rows.as_slice()),
+                0,
+            ),
+            Topology::Scatter {
+                springs,
+                incidence,
+                spring_forces,
+            } => (
+                std::mem::size_of_val(springs.a.as_slice())
+                    + std::mem::size_of_val(springs.b.as_slice())
+                    + std::mem::size_of_val(springs.rest_length.as_slice())
+                    + springs.stiffness.bytes()
+                    + std::mem::size_of_val(incidence.entry.as_slice())
+                    + std::mem::size_of_val(incidence.slices.slice_rows.as_slice()),
+                spring_forces.bytes(),
+            ),
+        };
+        MemoryUse {
+            positions,
+            topology,
+            per_step: forces + integration + external,
+        }
+    }
+
+    /// Bytes one fused step must read or write at least once (the memory-bandwidth floor).
+    pub fn bytes_per_step(&self) -> usize {
+        // Positions: read current, write next; deltas: read and write. Integration constants: read.
+        let vertex_streams = self.current.bytes() * 4
+            + 2 * self.numbering.slice_count() * std::mem::size_of::<Block>();
+        vertex_streams
+            + match &self.topology {
+                Topology::Gather(t) => {
+                    std::mem::size_of_val(t.neighbor.as_slice())
+                        + std::mem::size_of_val(t.rest_length.as_slice())
+                        + t.stiffness.bytes()
+                }
+                Topology::Scatter {
+                    springs,
+                    incidence,
+                    spring_forces,
+                } => {
+                    std::mem::size_of_val(springs.a.as_slice())
+                        + std::mem::size_of_val(springs.b.as_slice())
+                        + std::mem::size_of_val(springs.rest_length.as_slice())
+                        + springs.stiffness.bytes()
+                        + std::mem::size_of_val(incidence.entry.as_slice())
+                        // written once by the force pass, read back by the accumulation
+                        + 2 * spring_forces.bytes()
+                }
+            }
+    }
+
+    fn compute_external(&mut self) -> bool {
+        match &mut self.external {
+            Some(external) => {
+                let (current, delta, out) = (&self.current, &self.delta, &mut self.extra_forces);
+                self.pool.install(|| external.compute(current, delta, out));
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn step_fused(&mut self) -> Result<(), SimError> {
+        let has_extra = self.compute_external();
+        let extra = has_extra.then_some(&self.extra_forces);
+        let (current, integrator) = (&self.current, &self.integrator);
+        let all_finite = match &mut self.topology {
+            Topology::Gather(table) => self.pool.install(|| {
+                for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
+                    kernels::gather_and_integrate(table, integrator, current, extra, chunk)
+                })
+            }),
+            Topology::Scatter {
+                springs,
+                incidence,
+                spring_forces,
+            } => self.pool.install(|| {
+                compute_spring_forces(springs, current, spring_forces);
+                let spring_forces = &*spring_forces;
+                for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
+                    kernels::accumulate_and_integrate(
+                        incidence,
+                        spring_forces,
+                        integrator,
+                        current,
+                        extra,
+                        chunk,
+                    )
+                })
+            }),
+        };
+        self.finish_step(all_finite)
+    }
+
+    /// One step with every phase as its own pass, timed. Results equal [`Solver::step`]'s.
+    pub fn step_phased(&mut self) -> Result<PhaseTimes, SimError> {
+        if self.phase_forces.blocks() != self.numbering.slice_count() {
+            self.phase_forces = Soa::zeros(self.numbering.slice_count());
+        }
+        let mut times = PhaseTimes::default();
+        let start = Instant::now();
+        let has_extra = self.compute_external();
+        times.external = start.elapsed();
+        let extra = has_extra.then_some(&self.extra_forces);
+        let (current, integrator) = (&self.current, &self.integrator);
+        let phase_forces = &mut self.phase_forces;
+        let all_finite = self.pool.install(|| {
+            let start = Instant::now();
+            match &mut self.topology {
+                Topology::Gather(table) => {
+                    for_each_force_chunk(phase_forces, |chunk| {
+                        kernels::gather_forces(table, current, chunk)
+                    });
+                    times.force_calculation = start.elapsed();
+                }
+                Topology::Scatter {
+                    springs,
+                    incidence,
+                    spring_forces,
+                } => {
+                    compute_spring_forces(springs, current, spring_forces);
+                    times.force_calculation = start.elapsed();
+                    let start = Instant::now();
+                    let spring_forces = &*spring_forces;
+                    for_each_force_chunk(phase_forces, |chunk| {
+                        kernels::accumulate_forces(incidence, spring_forces, chunk);
+                    });
+                    times.force_accumulation = Some(start.elapsed());
+                }
+            }
+            let start = Instant::now();
+            let phase_forces = &*phase_forces;
+            let all_finite = for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
+                kernels::integrate(integrator, current, phase_forces, extra, chunk)
+            });
+            times.integration = start.elapsed();
+            all_finite
+        });
+        self.finish_step(all_finite)?;
+        Ok(times)
+    }
+
+    fn finish_step(&mut self, all_finite: bool) -> Result<(), SimError> {
+        std::mem::swap(&mut self.current, &mut self.next);
+        self.steps_taken += 1;
+        if all_finite {
+            return Ok(());
+        }
+        let vertex = (0..self.model.vertex_count())
+            .find(|&v| {
+                let k = self.numbering.internal[v] as usize;
+                !self.current.get(k).iter().all(|x| x.is_finite())
+            })
+            .unwrap_or(0);
+        Err(SimError::NonFinite {
+            step: self.steps_taken,
+            vertex,
+        })
+    }
+}
+
+/// Runs `kernel` over chunks of [`SLICES_PER_TASK`] slices of `next` and `delta` in parallel;
+/// true if every chunk reported finite results.
+fn for_each_vertex_chunk(
+    next: &mut Soa,
+    delta: &mut Soa,
+    kernel: impl Fn(VertexChunk<'_>) -> bool + Sync,
+) -> bool {
+    let [nx, ny, nz] = &mut next.axes;
+    let [dx, dy, dz] = &mut delta.axes;
+    nx.par_chunks_mut(SLICES_PER_TASK)
+        .zip(ny.par_chunks_mut(SLICES_PER_TASK))
+        .zip(nz.par_chunks_mut(SLICES_PER_TASK))
+        .zip(
+            dx.par_chunks_mut(SLICES_PER_TASK)
+                .zip(dy.par_chunks_mut(SLICES_PER_TASK))
+                .zip(dz.par_chunks_mut(SLICES_PER_TASK)),
+        )
+        .enumerate()
+        .map(|(task, (((nx, ny), nz), ((dx, dy), dz)))| {
+            kernel(VertexChunk {
+                first_slice: task * SLICES_PER_TASK,
+                next: [nx, ny, nz],
+                delta: [dx, dy, dz],
+            })
+        })
+        .reduce(|| true, |a, b| a && b)
+}
+
+/// Runs a force-only `kernel` over chunks of [`SLICES_PER_TASK`] slices of `out` in parallel.
+fn for_each_force_chunk(out: &mut Soa, kernel: impl Fn(ForceChunk<'_>) + Sync) {
+    let [x, y, z] = &mut out.axes;
+    x.par_chunks_mut(SLICES_PER_TASK)
+        .zip(y.par_chunks_mut(SLICES_PER_TASK))
+        .zip(z.par_chunks_mut(SLICES_PER_TASK))
+        .enumerate()
+        .for_each(|(task, ((x, y), z))| {
+            kernel(ForceChunk {
+                first_slice: task * SLICES_PER_TASK,
+                out: [x, y, z],
+            });
+        });
+}
+
+fn compute_spring_forces(springs: &SpringTable, current: &Soa, spring_forces: &mut Soa) {
+    let rows = springs.a.len();
+    let [x, y, z] = &mut spring_forces.axes;
+    x[..rows]
+        .par_chunks_mut(SPRING_ROWS_PER_TASK)
+        .zip(y[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
+        .zip(z[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
+        .enumerate()
+        .for_each(|(task, ((x, y), z))| {
+            kernels::spring_forces(springs, current, task * SPRING_ROWS_PER_TASK, [x, y, z]);
+        });
+}
+
+fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
+    let adjacency = &model.adjacency;
+    let (slices, entries) = Slices::build(
+        model,
+        numbering,
+        |_, e| {
+            let spring = adjacency.springs[e] as usize;
+            let neighbor = numbering.internal[adjacency.neighbors[e] as usize];
+            (
+                neighbor,
+                model.rest_lengths[spring] as f32,
+                model.stiffnesses[spring] as f32,
+            )
+        },
+        |k| (k as u32, 0.0, 0.0),
+    );
+    let stiffness = if is_uniform(&model.stiffnesses) {
+        Stiffness::Uniform(model.stiffnesses.first().copied().unwrap_or(0.0) as f32)
+    } else {
+        Stiffness::PerEntry(into_blocks(entries.iter().map(|e| e.2).collect()))
+    };
+    GatherTable {
+        slices,
+        neighbor: into_blocks(entries.iter().map(|e| e.0).collect()),
+        rest_length: into_blocks(entries.iter().map(|e| e.1).collect()),
+        stiffness,
+    }
+}
+
+fn scatter_tables(model: &Model, numbering: &Numbering) -> (SpringTable, IncidenceTable) {
+    // Springs in order of their first internal endpoint, so the force pass reads positions
+    // nearly sequentially; `slot_of[s]` is model spring s's position in that order.
+    let ends: Vec<[u32; 2]> = model
+        .spring_ends
+        .iter()
+        .map(|e| e.map(|v| numbering.internal[v as usize]))
+        .collect();
+    let mut order: Vec<u32> = (0..model.spring_count() as u32).collect();
+    order.sort_by_key(|&s| {
+        let [a, b] = ends[s as usize];
+        (a.min(b), a.max(b))
+    });
+    let mut slot_of = vec![0u32; model.spring_count()];
+    for (slot, &s) in order.iter().enumerate() {
+        slot_of[s as usize] = slot as u32;
+    }
+    let rows = model.spring_count().div_ceil(LANES);
+    let zero_slot = (rows * LANES) as u32;
+    let springs = SpringTable {
+        a: into_blocks(order.iter().map(|&s| ends[s as usize][0]).collect()),
+        b: into_blocks(order.iter().map(|&s| ends[s as usize][1]).collect()),
+        rest_length: into_blocks(
+            order
+                .iter()
+                .map(|&s| model.rest_lengths[s as usize] as f32)
+                .collect(),
+        ),
+        stiffness: if is_uniform(&model.stiffnesses) {
+            Stiffness::Uniform(model.stiffnesses.first().copied().unwrap_or(0.0) as f32)
+        } else {
+            Stiffness::PerEntry(into_blocks(
+                order
+                    .iter()
+                    .map(|&s| model.stiffnesses[s as usize] as f32)
+                    .collect(),
+            ))
+        },
+    };
+    let adjacency = &model.adjacency;
+    let (slices, entries) = Slices::build(
+        model,
+        numbering,
+        |k, e| {
+            let spring = adjacency.springs[e] as usize;
+            let is_b_end = ends[spring][1] as usize == k;
+            slot_of[spring] | if is_b_end { B_END } else { 0 }
+        },
+        |_| zero_slot,
+    );
+    let incidence = IncidenceTable {
+        slices,
+        entry: into_blocks(entries),
+    };
+    (springs, incidence)
+}
+
+impl Solver for CpuSolver {
+    fn describe(&self) -> String {
+        let order = match self.options.order {
+            VertexOrder::Mesh => "",
+            VertexOrder::ValenceSorted => ", valence-sorted",
+        };
+        format!(
+            "cpu {} (f32, {} threads{order})",
+            self.options.method.name(),
+            self.threads()
+        )
+    }
+
+    fn set_params(&mut self, params: &SimParams) {
+        let dt = params.dt;
+        let per_vertex = |f: &dyn Fn(usize) -> f64| -> Vec<Block> {
+            into_blocks(
+                (0..self.numbering.padded_len)
+                    .map(|k| {
+                        self.numbering
+                            .original
+                            .get(k)
+                            .map_or(0.0, |&v| f(v as usize) as f32)
+                    })
+                    .collect(),
+            )
+        };
+        let free = |v: usize| !self.model.pinned[v];
+        let force_scale = per_vertex(&|v| {
+            if free(v) {
+                dt * dt / self.model.masses[v]
+            } else {
+                0.0
+            }
+        });
+        let velocity_scale = per_vertex(&|v| {
+            if free(v) {
+                1.0 - params.damping * dt / self.model.masses[v]
+            } else {
+                0.0
+            }
+        });
+        self.integrator = Integrator {
+            force_scale,
+            velocity_scale,
+            gravity_step: (params.gravity * dt * dt).as_vec3().to_array(),
+        };
+        self.external = ExternalForces::new(&self.model, &self.numbering, params);
+        if self.external.is_some() && self.extra_forces.blocks() != self.numbering.slice_count() {
+            self.extra_forces = Soa::zeros(self.numbering.slice_count());
+        }
+        self.params = params.clone();
+    }
+
+    fn step(&mut self, steps: u32) -> Result<(), SimError> {
+        for _ in 0..steps {
+            self.step_fused()?;
+        }
+        Ok(())
+    }
+
+    fn read_state(&self) -> State {
+        let read = |soa: &Soa, v: usize| {
+            DVec3::from(soa.get(self.numbering.internal[v] as usize).map(f64::from))
+        };
+        let positions: Vec<DVec3> = (0..self.model.vertex_count())
+            .map(|v| read(&self.current, v))
+            .collect();
+        let previous_positions = positions
+            .iter()
+            .enumerate()
+            .map(|(v, x)| *x - read(&self.delta, v))
+            .collect();
+        State {
+            positions,
+            previous_positions,
+        }
+    }
+
+    fn write_state(&mut self, state: &State) {
+        for (v, (p, q)) in state
+            .positions
+            .iter()
+            .zip(&state.previous_positions)
+            .enumerate()
+        {
+            let k = self.numbering.internal[v] as usize;
+            self.current.set(k, p.as_vec3().to_array());
+            self.delta.set(k, (*p - *q).as_vec3().to_array());
+        }
+    }
+
+    fn steps_taken(&self) -> u64 {
+        self.steps_taken
+    }
+}

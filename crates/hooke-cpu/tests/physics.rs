@@ -1,0 +1,427 @@
+//! Physics tests: analytic cases, the f64 reference as oracle, and CPU method agreement.
+
+use std::path::Path;
+
+use glam::DVec3;
+use hooke_core::diagnostics::{energy, pin_reactions};
+use hooke_core::mesh::GridPlane;
+use hooke_core::reference::ReferenceSolver;
+use hooke_core::scene::{MeshGenerator, MeshSection, Scene, SceneFile};
+use hooke_core::{
+    MassModel, Model, ModelOptions, SimError, SimParams, Solver, State, StiffnessModel, Wind,
+};
+use hooke_cpu::layout::VertexOrder;
+use hooke_cpu::{CpuOptions, CpuSolver, Method};
+
+fn cpu(model: &Model, params: &SimParams, method: Method, threads: usize) -> CpuSolver {
+    let options = CpuOptions {
+        method,
+        threads: Some(threads),
+        order: VertexOrder::Mesh,
+    };
+    CpuSolver::new(model, params, options).expect("cpu solver")
+}
+
+/// Every solver under test, the reference first.
+fn all_solvers(model: &Model, params: &SimParams) -> Vec<Box<dyn Solver>> {
+    vec![
+        Box::new(ReferenceSolver::new(model, params)),
+        Box::new(cpu(model, params, Method::Gather, 2)),
+        Box::new(cpu(model, params, Method::Scatter, 2)),
+    ]
+}
+
+fn grid_section(columns: u32, rows: u32) -> MeshSection {
+    MeshSection {
+        generator: MeshGenerator::Grid,
+        resolution: Some([columns, rows]),
+        vertices: None,
+        seed: 0,
+        size: [1.0, 1.0],
+        plane: GridPlane::Xz,
+        center: [0.0; 3],
+        path: None,
+    }
+}
+
+fn irregular_section(vertices: u32) -> MeshSection {
+    MeshSection {
+        generator: MeshGenerator::Irregular,
+        resolution: None,
+        vertices: Some(vertices),
+        seed: 11,
+        ..grid_section(2, 2)
+    }
+}
+
+/// The comparability workload. Its dt exceeds the (conservative) stability bound on
+/// irregular meshes, where valences reach 12, so it is built as `hooke bench` builds it.
+fn benchmark_scene(mesh: MeshSection, vertex_count: u32) -> Scene {
+    SceneFile::benchmark(mesh, vertex_count)
+        .build(Path::new("bench"), true)
+        .expect("benchmark scene builds")
+}
+
+/// `||a - b|| / ||b||` over all coordinates.
+fn relative_l2(a: &[DVec3], b: &[DVec3]) -> f64 {
+    let error: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (*p - *q).length_squared())
+        .sum();
+    let norm: f64 = b.iter().map(|q| q.length_squared()).sum();
+    (error / norm).sqrt()
+}
+
+fn two_masses(pinned: Vec<u32>, stretch: f64, k: f64, m: f64) -> Model {
+    let options = ModelOptions {
+        stiffness: StiffnessModel::Uniform(k),
+        mass: MassModel::PerVertex(m),
+        rest_length_scale: 1.0 / (1.0 + stretch),
+        pinned,
+    };
+    Model::from_springs(
+        vec![DVec3::ZERO, DVec3::X],
+        vec![[0, 1]],
+        vec![m, m],
+        &options,
+    )
+    .expect("model")
+}
+
+/// Period of the spring's length oscillation, from the mean spacing of upward zero crossings of
+/// its extension (linearly interpolated between steps).
+fn measured_period(solver: &mut dyn Solver, model: &Model, dt: f64, steps: u32) -> f64 {
+    let extension = |s: &dyn Solver| {
+        let state = s.read_state();
+        state.positions[0].distance(state.positions[1]) - model.rest_lengths[0]
+    };
+    let mut crossings = Vec::new();
+    let mut previous = extension(solver);
+    for n in 1..=steps {
+        solver.step(1).expect("stable");
+        let e = extension(solver);
+        if previous < 0.0 && e >= 0.0 {
+            crossings.push((f64::from(n) - 1.0 + previous / (previous - e)) * dt);
+        }
+        previous = e;
+    }
+    assert!(crossings.len() >= 3, "too few oscillations");
+    (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64
+}
+
+#[test]
+fn single_spring_period_matches_two_pi_sqrt_m_eff_over_k() {
+    let (k, m) = (40.0, 0.5);
+    // Free pair: reduced mass m/2. One end pinned: the free mass m.
+    for (pinned, m_eff) in [(vec![], m / 2.0), (vec![0], m)] {
+        let model = two_masses(pinned, 0.01, k, m);
+        let expected = 2.0 * std::f64::consts::PI * (m_eff / k).sqrt();
+        let dt = expected / 2000.0;
+        let params = SimParams {
+            dt,
+            gravity: DVec3::ZERO,
+            ..Default::default()
+        };
+        for mut solver in all_solvers(&model, &params) {
+            let period = measured_period(solver.as_mut(), &model, dt, 12_000);
+            // Verlet's period error is (w dt)^2 / 24 ~ 4e-7 here; crossing interpolation and
+            // f32 rounding of a 1 cm amplitude stay well below 1e-4.
+            let tolerance = 1e-4;
+            assert!(
+                (period / expected - 1.0).abs() < tolerance,
+                "{}: period {period} vs {expected}",
+                solver.describe()
+            );
+        }
+    }
+}
+
+#[test]
+fn free_fall_follows_verlet_closed_form_and_converges_to_g_t2_over_2() {
+    let options = ModelOptions {
+        stiffness: StiffnessModel::Uniform(1.0),
+        mass: MassModel::PerVertex(1.0),
+        rest_length_scale: 1.0,
+        pinned: vec![],
+    };
+    let model = Model::from_springs(vec![DVec3::new(0.0, 2.0, 0.0)], vec![], vec![1.0], &options)
+        .expect("model");
+    let g = 9.81;
+    for dt in [1e-3, 1e-4] {
+        let params = SimParams {
+            dt,
+            ..Default::default()
+        };
+        let n = (0.2 / dt).round() as u32;
+        for mut solver in all_solvers(&model, &params) {
+            solver.step(n).expect("stable");
+            let fallen = 2.0 - solver.read_state().positions[0].y;
+            let t = f64::from(n) * dt;
+            // Starting at rest with x(-dt) = x(0), Verlet gives exactly g dt^2 n (n + 1) / 2,
+            // which is g t^2 / 2 plus a start-up offset g t dt / 2 that vanishes with dt.
+            let closed_form = g * dt * dt * f64::from(n) * f64::from(n + 1) / 2.0;
+            // f32 solvers round x + d to half an ulp of 2 m (1.2e-7) each step, a random walk.
+            let f32_rounding = 2.4e-7 * f64::from(n).sqrt();
+            assert!(
+                (fallen - closed_form).abs() < 1e-12 + f32_rounding,
+                "{}",
+                solver.describe()
+            );
+            assert!((fallen - g * t * t / 2.0 - g * t * dt / 2.0).abs() < 1e-9 + f32_rounding);
+        }
+    }
+}
+
+#[test]
+fn energy_is_conserved_without_damping() {
+    let mut scene = benchmark_scene(grid_section(12, 12), 144);
+    scene.params.damping = 0.0;
+    scene.params.dt = 0.3 * scene.max_stable_dt;
+    let params = scene.params.clone();
+    for mut solver in all_solvers(&scene.model, &params) {
+        // Energy at step n with the central velocity (x_{n+1} - x_{n-1}) / 2dt, which Verlet
+        // conserves up to bounded O(dt^2) oscillation without drift.
+        let mut states: Vec<State> = vec![solver.read_state()];
+        let mut energies = Vec::new();
+        for _ in 0..3000 {
+            solver.step(1).expect("stable");
+            states.push(solver.read_state());
+            if states.len() == 3 {
+                let mut central = states[1].clone();
+                central.previous_positions = states[0].positions.clone();
+                central.positions = states[1].positions.clone();
+                let mut e = energy(&scene.model, &central, &params);
+                let v2: f64 = (0..scene.model.vertex_count())
+                    .map(|i| {
+                        let v =
+                            (states[2].positions[i] - states[0].positions[i]) / (2.0 * params.dt);
+                        0.5 * scene.model.masses[i] * v.length_squared()
+                    })
+                    .sum();
+                e.kinetic = v2;
+                energies.push(e);
+                states.remove(0);
+            }
+        }
+        let e0 = energies[0].total();
+        let swing = energies
+            .iter()
+            .map(|e| e.gravitational)
+            .fold(f64::NEG_INFINITY, f64::max)
+            - energies
+                .iter()
+                .map(|e| e.gravitational)
+                .fold(f64::INFINITY, f64::min);
+        let drift = energies
+            .iter()
+            .map(|e| (e.total() - e0).abs())
+            .fold(0.0, f64::max);
+        // The cloth converts about `swing` J between potential and kinetic energy; the
+        // total may wobble by a small fraction of that (dt is 0.3 of the stability limit).
+        assert!(
+            drift < 0.01 * swing,
+            "{}: drift {drift} J of swing {swing} J",
+            solver.describe()
+        );
+    }
+}
+
+#[test]
+fn pinned_points_do_not_move() {
+    let scene = benchmark_scene(grid_section(10, 10), 100);
+    for mut solver in all_solvers(&scene.model, &scene.params) {
+        solver.step(300).expect("stable");
+        let state = solver.read_state();
+        for (i, pinned) in scene.model.pinned.iter().enumerate() {
+            if *pinned {
+                let start = scene.model.initial_positions[i].as_vec3().as_dvec3();
+                assert_eq!(state.positions[i], start, "{}", solver.describe());
+            }
+        }
+    }
+}
+
+#[test]
+fn hanging_cloth_pin_reactions_balance_its_weight() {
+    let mut scene = benchmark_scene(grid_section(9, 9), 81);
+    // Stiffer springs, and damping near critical for the slowest (pendulum-like) modes, so the
+    // cloth settles to static equilibrium within the run.
+    scene.model.stiffnesses.iter_mut().for_each(|k| *k *= 10.0);
+    scene.params.damping = 0.1;
+    scene.params.dt = 0.5 * hooke_core::stability::stability_limit(&scene.model, 0.1).max_dt;
+    let weight = scene.model.total_mass() * scene.params.gravity;
+    for (index, mut solver) in all_solvers(&scene.model, &scene.params)
+        .into_iter()
+        .enumerate()
+    {
+        solver.step(40_000).expect("stable");
+        let state = solver.read_state();
+        let speed = (0..scene.model.vertex_count())
+            .map(|i| state.velocity(i, scene.params.dt).length())
+            .fold(0.0, f64::max);
+        // f32 positions of order 1 m can only settle into a limit cycle of a few ulps per step.
+        let settled = if index == 0 {
+            1e-4
+        } else {
+            8.0 * f64::from(f32::EPSILON) / scene.params.dt
+        };
+        assert!(
+            speed < settled,
+            "{}: not settled, max speed {speed}",
+            solver.describe()
+        );
+        // Averaged over time, as a force sensor would: an f32 cloth's rounding limit cycle makes
+        // the instantaneous sum wobble by the momentum it exchanges, which averages to zero.
+        let window = 2000;
+        let mut total = DVec3::ZERO;
+        for _ in 0..window {
+            solver.step(1).expect("stable");
+            let positions = solver.read_state().positions;
+            total += pin_reactions(&scene.model, &positions, &scene.params)
+                .iter()
+                .map(|(_, r)| *r)
+                .sum::<DVec3>();
+        }
+        total /= f64::from(window);
+        assert!(
+            (total + weight).length() < 1e-3 * weight.length(),
+            "{}: reactions {total} vs weight {weight}",
+            solver.describe()
+        );
+    }
+}
+
+/// The bar: after 100 steps of the benchmark workload, relative L2 error < 1e-5.
+const AGREEMENT_AFTER_100_STEPS: f64 = 1e-5;
+
+#[test]
+fn cpu_methods_match_reference_after_100_benchmark_steps() {
+    for (mesh, vertices) in [
+        (grid_section(48, 48), 48 * 48),
+        (irregular_section(2000), 2000),
+    ] {
+        let scene = benchmark_scene(mesh, vertices);
+        let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+        reference.step(100).expect("stable");
+        let expected = reference.read_state().positions;
+        for method in Method::ALL {
+            let mut solver = cpu(&scene.model, &scene.params, method, 2);
+            solver.step(100).expect("stable");
+            let error = relative_l2(&solver.read_state().positions, &expected);
+            assert!(
+                error < AGREEMENT_AFTER_100_STEPS,
+                "{}: {error:e}",
+                solver.describe()
+            );
+        }
+    }
+}
+
+/// A model and parameters exercising everything: irregular mesh, per-spring stiffness,
+/// area-lumped masses, wind, a drag and a point force.
+fn everything_scene() -> (Model, SimParams) {
+    let mut scene = benchmark_scene(irregular_section(700), 700);
+    let options = ModelOptions {
+        stiffness: StiffnessModel::InverseRestLength(20.0),
+        mass: MassModel::AreaDensity(0.2),
+        rest_length_scale: 0.98,
+        pinned: vec![0, 5],
+    };
+    let model = Model::from_mesh(&scene.mesh, &options).expect("model");
+    scene.params.dt = 0.5 * hooke_core::stability::stability_limit(&model, 0.0).max_dt;
+    scene.params.damping = 0.001;
+    scene.params.wind = Some(Wind {
+        velocity: DVec3::new(1.0, 0.5, 2.0),
+        coefficient: 0.3,
+    });
+    scene.params.point_forces = vec![hooke_core::PointForce {
+        vertex: 9,
+        force: DVec3::new(0.0, 0.5, 0.0),
+    }];
+    scene.params.drags = vec![hooke_core::Drag {
+        vertices: vec![20, 21],
+        target: DVec3::new(0.0, 0.3, 0.0),
+        stiffness: 2.0,
+    }];
+    (model, scene.params)
+}
+
+#[test]
+fn all_forces_match_reference() {
+    let (model, params) = everything_scene();
+    let mut reference = ReferenceSolver::new(&model, &params);
+    reference.step(200).expect("stable");
+    let expected = reference.read_state().positions;
+    let moved = relative_l2(&model.initial_positions, &expected);
+    assert!(moved > 1e-3, "the forces should move the cloth");
+    for method in Method::ALL {
+        let mut solver = cpu(&model, &params, method, 2);
+        solver.step(200).expect("stable");
+        let error = relative_l2(&solver.read_state().positions, &expected);
+        assert!(
+            error < AGREEMENT_AFTER_100_STEPS,
+            "{}: {error:e}",
+            solver.describe()
+        );
+    }
+}
+
+#[test]
+fn gather_scatter_orders_and_thread_counts_are_bit_identical() {
+    let (model, params) = everything_scene();
+    let run = |method, order, threads| {
+        let options = CpuOptions {
+            method,
+            threads: Some(threads),
+            order,
+        };
+        let mut solver = CpuSolver::new(&model, &params, options).expect("solver");
+        solver.step(150).expect("stable");
+        solver.read_state()
+    };
+    let baseline = run(Method::Scatter, VertexOrder::Mesh, 1);
+    for method in Method::ALL {
+        for order in [VertexOrder::Mesh, VertexOrder::ValenceSorted] {
+            for threads in [1, 2, 3] {
+                assert!(
+                    run(method, order, threads) == baseline,
+                    "{method:?} {order:?} {threads} threads differs"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn phased_step_equals_fused_step() {
+    let (model, params) = everything_scene();
+    for method in Method::ALL {
+        let mut fused = cpu(&model, &params, method, 2);
+        let mut phased = cpu(&model, &params, method, 2);
+        fused.step(50).expect("stable");
+        for _ in 0..50 {
+            let times = phased.step_phased().expect("stable");
+            assert_eq!(
+                times.force_accumulation.is_some(),
+                method == Method::Scatter
+            );
+        }
+        assert!(fused.read_state() == phased.read_state(), "{method:?}");
+    }
+}
+
+#[test]
+fn blow_up_is_reported_with_step_and_vertex() {
+    let mut scene = benchmark_scene(grid_section(8, 8), 64);
+    scene.params.dt = 3.0 * scene.max_stable_dt;
+    for mut solver in all_solvers(&scene.model, &scene.params) {
+        let error = solver.step(100_000).expect_err("must blow up");
+        let SimError::NonFinite { step, vertex } = error else {
+            panic!("unexpected {error:?}");
+        };
+        assert!(step > 1 && step < 100_000);
+        assert!(!scene.model.pinned[vertex]);
+        assert_eq!(solver.steps_taken(), step, "{}", solver.describe());
+    }
+}
