@@ -74,7 +74,6 @@ fn load_obj(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, _materials) =
         tobj::load_obj_buf(&mut reader, &options, |_| Ok(Default::default())).map_err(|error| {
