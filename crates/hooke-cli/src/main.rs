@@ -1,1 +1,34 @@
-fn main() {}
+//! The `hooke` command: simulate, inspect and benchmark mass-spring scenes.
+
+mod commands;
+mod format;
+mod scene_loading;
+mod solvers;
+
+use clap::{Parser, Subcommand};
+
+/// hooke: interactive mass-spring simulation of deformable surfaces (Georgii & Westermann).
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Simulate a scene and write frames (binary PLY), the final state and a summary.
+    Run(commands::run::RunArgs),
+    /// Show a scene's mesh, valences, stable time step and memory per method.
+    Info(commands::info::InfoArgs),
+    /// Time gather and scatter on the benchmark workload (the paper's Table 2).
+    Bench(commands::bench::BenchArgs),
+}
+
+fn main() -> anyhow::Result<()> {
+    match Cli::parse().command {
+        Command::Run(args) => commands::run::run(&args),
+        Command::Info(args) => commands::info::run(&args),
+        Command::Bench(args) => commands::bench::run(&args),
+    }
+}

@@ -1,8 +1,8 @@
 //! The per-chunk kernels of one time step, written as 8-lane loops that LLVM turns into SIMD.
 //!
-//! Each public kernel handles a contiguous chunk of slices (or spring rows) and is compiled for
-//! several instruction sets by `multiversion`, picked at run time. No kernel uses fused
-//! multiply-add or reassociates, so every instruction set gives bit-identical results.
+//! Each public kernel handles a contiguous chunk of slices (or spring rows). It is written once,
+//! generic over [`Simd`], and runs with AVX2 where the CPU has it, else portably; no kernel uses
+//! fused multiply-add or reassociates, so both give bit-identical results.
 //!
 //! Spring force (paper eq. 1, sign of eq. 4) on vertex `i` from spring `ij`:
 //! `D_ij (1 - |l0_ij| / |l_ij|) (x_j - x_i)`. Swapping `i` and `j` negates `x_j - x_i` exactly in
@@ -17,12 +17,11 @@
 //! from 2 m at dt = 1e-4 s loses 21% of its distance that way). Stored as `d` they keep their
 //! own precision, and only `x + d` rounds, without feeding back into the velocity.
 
-use multiversion::multiversion;
-
 use crate::layout::{LANES, Slices};
-
-/// One lane-block (8 vertices or springs) of one scalar quantity.
-pub type Block = [f32; LANES];
+#[cfg(target_arch = "x86_64")]
+use crate::simd::Avx2;
+pub use crate::simd::Block;
+use crate::simd::{Portable, Simd};
 
 /// Three axes of per-vertex (or per-spring) vectors, in blocks of 8.
 #[derive(Clone, Debug, Default)]
@@ -58,19 +57,67 @@ impl Soa {
     }
 }
 
-/// Spring stiffness per entry, or one value for all (which saves a memory stream).
+/// Spring stiffness per entry, or one value for all. A uniform stiffness is one row read with
+/// stride 0: branch-free in the kernels, and it saves a memory stream.
 #[derive(Clone, Debug)]
-pub enum Stiffness {
-    Uniform(f32),
-    PerEntry(Vec<Block>),
+pub struct Stiffness {
+    rows: Vec<Block>,
+    stride: usize,
 }
 
 impl Stiffness {
-    pub fn bytes(&self) -> usize {
-        match self {
-            Self::Uniform(_) => 0,
-            Self::PerEntry(rows) => std::mem::size_of_val(rows.as_slice()),
+    pub fn uniform(value: f32) -> Self {
+        Self {
+            rows: vec![[value; LANES]],
+            stride: 0,
         }
+    }
+
+    pub fn per_entry(rows: Vec<Block>) -> Self {
+        Self { rows, stride: 1 }
+    }
+
+    #[inline(always)]
+    fn row(&self, row: usize) -> &Block {
+        &self.rows[row * self.stride]
+    }
+
+    /// Bytes streamed per step (a uniform value stays in L1).
+    pub fn bytes(&self) -> usize {
+        self.stride * std::mem::size_of_val(self.rows.as_slice())
+    }
+}
+
+/// Rows of 8 indices, each flagged when its indices are consecutive (`i, i+1, ..., i+7`), as
+/// interior rows of a regularly numbered mesh are: those load with one vector load, the others
+/// with a gather.
+#[derive(Clone, Debug, Default)]
+pub struct IndexRows {
+    pub rows: Vec<[u32; LANES]>,
+    pub contiguous: Vec<bool>,
+}
+
+impl IndexRows {
+    /// Flags rows whose masked indices run consecutively and stay below `limit`.
+    pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize) -> Self {
+        let contiguous = rows
+            .iter()
+            .map(|r| {
+                let first = (r[0] & mask) as usize;
+                first + LANES <= limit
+                    && (0..LANES).all(|lane| (r[lane] & mask) as usize == first + lane)
+            })
+            .collect();
+        Self { rows, contiguous }
+    }
+
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.rows.as_slice()) + self.contiguous.len()
+    }
+
+    /// Share of rows that load contiguously.
+    pub fn contiguous_share(&self) -> f64 {
+        self.contiguous.iter().filter(|c| **c).count() as f64 / self.rows.len().max(1) as f64
     }
 }
 
@@ -79,7 +126,7 @@ impl Stiffness {
 pub struct GatherTable {
     pub slices: Slices,
     /// Per entry: internal index of the neighbour (the lane's own vertex for padding).
-    pub neighbor: Vec<[u32; LANES]>,
+    pub neighbor: IndexRows,
     /// Per entry: rest length, m (0 for padding).
     pub rest_length: Vec<Block>,
     pub stiffness: Stiffness,
@@ -88,8 +135,8 @@ pub struct GatherTable {
 /// Edge-centric (ECA) springs, in rows of 8; the last row may hold zero-force padding springs.
 #[derive(Clone, Debug)]
 pub struct SpringTable {
-    pub a: Vec<[u32; LANES]>,
-    pub b: Vec<[u32; LANES]>,
+    pub a: IndexRows,
+    pub b: IndexRows,
     pub rest_length: Vec<Block>,
     pub stiffness: Stiffness,
 }
@@ -102,7 +149,7 @@ pub const B_END: u32 = 0x8000_0000;
 #[derive(Clone, Debug)]
 pub struct IncidenceTable {
     pub slices: Slices,
-    pub entry: Vec<[u32; LANES]>,
+    pub entry: IndexRows,
 }
 
 /// Per-vertex integration constants (see the module docs).
@@ -114,110 +161,197 @@ pub struct Integrator {
     pub gravity_step: [f32; 3],
 }
 
-#[inline(always)]
-fn spring_scale(stiffness: f32, rest_length: f32, length_squared: f32) -> f32 {
-    // Padding entries have length 0; the clamp keeps them at 0 force instead of 0/0.
-    let length = length_squared.max(f32::MIN_POSITIVE).sqrt();
-    stiffness * (1.0 - rest_length / length)
+/// Which implementation of [`Simd`] the kernels use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum InstructionSet {
+    /// AVX2 where the CPU has it, else portable.
+    #[default]
+    Best,
+    /// Plain loops (for checking the vector path against them).
+    Portable,
 }
 
-#[inline(always)]
-fn stiffness_at(stiffness: &Stiffness, row: usize, lane: usize) -> f32 {
-    match stiffness {
-        Stiffness::Uniform(d) => *d,
-        Stiffness::PerEntry(rows) => rows[row][lane],
-    }
-}
-
-#[inline(always)]
-fn gather_slice(table: &GatherTable, positions: &Soa, slice: usize) -> [Block; 3] {
-    let [xs, ys, zs] = positions.axes.each_ref().map(|a| a.as_flattened());
-    let [xi, yi, zi] = positions.axes.each_ref().map(|a| a[slice]);
-    let mut force = [[0.0f32; LANES]; 3];
-    for row in table.slices.rows(slice) {
-        let neighbor = &table.neighbor[row];
-        let rest = &table.rest_length[row];
-        for lane in 0..LANES {
-            let j = neighbor[lane] as usize;
-            // SAFETY: `CpuSolver::new` builds every neighbour index from the numbering, so
-            // `j < padded_len`, and every position axis has exactly `padded_len` values.
-            let (xj, yj, zj) = unsafe {
-                (
-                    *xs.get_unchecked(j),
-                    *ys.get_unchecked(j),
-                    *zs.get_unchecked(j),
-                )
-            };
-            let (dx, dy, dz) = (xj - xi[lane], yj - yi[lane], zj - zi[lane]);
-            let k = spring_scale(
-                stiffness_at(&table.stiffness, row, lane),
-                rest[lane],
-                dx * dx + dy * dy + dz * dz,
-            );
-            force[0][lane] += k * dx;
-            force[1][lane] += k * dy;
-            force[2][lane] += k * dz;
+impl InstructionSet {
+    /// The implementation actually used on this CPU.
+    pub fn resolved_name(self) -> &'static str {
+        #[cfg(target_arch = "x86_64")]
+        if self == Self::Best && Avx2::detect().is_some() {
+            return "avx2";
         }
+        "portable"
     }
-    force
 }
 
-#[inline(always)]
-fn accumulate_slice(table: &IncidenceTable, spring_forces: &Soa, slice: usize) -> [Block; 3] {
-    let axes = spring_forces.axes.each_ref().map(|a| a.as_flattened());
-    let mut force = [[0.0f32; LANES]; 3];
-    for row in table.slices.rows(slice) {
-        let entry = &table.entry[row];
-        for lane in 0..LANES {
-            let slot = (entry[lane] & !B_END) as usize;
-            let sign = entry[lane] & B_END;
-            for axis in 0..3 {
-                // SAFETY: `CpuSolver::new` builds every slot as a spring index or the zero slot,
-                // all below the force buffer's length.
-                let f = unsafe { *axes[axis].get_unchecked(slot) };
-                force[axis][lane] += f32::from_bits(f.to_bits() ^ sign);
+/// Defines a public kernel that runs `generic` with AVX2 when available and allowed.
+macro_rules! dispatch {
+    ($(#[$doc:meta])* pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $generic:ident) => {
+        $(#[$doc])*
+        pub fn $name(isa: InstructionSet, $($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            if let (InstructionSet::Best, Some(avx2)) = (isa, Avx2::detect()) {
+                #[target_feature(enable = "avx2")]
+                fn with_avx2(simd: Avx2, $($arg: $ty),*) -> $ret {
+                    $generic(simd, $($arg),*)
+                }
+                // SAFETY: `Avx2::detect` found AVX2 on this CPU.
+                return unsafe { with_avx2(avx2, $($arg),*) };
             }
+            let _ = isa;
+            $generic(Portable, $($arg),*)
         }
+    };
+}
+
+/// `values[index[lane] & mask]` for the 8 lanes of `row`.
+#[inline(always)]
+fn load_row<S: Simd>(simd: S, values: &[f32], rows: &IndexRows, row: usize, mask: u32) -> S::V {
+    let index = &rows.rows[row];
+    if rows.contiguous[row] {
+        let first = (index[0] & mask) as usize;
+        let block: &Block = values[first..first + LANES]
+            .try_into()
+            .expect("invariant: a slice of LANES floats converts to a block");
+        simd.load(block)
+    } else {
+        // SAFETY: `CpuSolver::new` builds every index (masked) below `values.len()`: vertex
+        // indices below `padded_len`, spring slots below the force buffer's length.
+        unsafe { simd.gather(values, index, mask) }
+    }
+}
+
+/// Force of 8 springs on their near ends: `D (1 - l0/|d|) d` per axis, `d = x_far - x_near`.
+#[inline(always)]
+fn spring_force_rows<S: Simd>(
+    simd: S,
+    near: [S::V; 3],
+    far: [S::V; 3],
+    stiffness: S::V,
+    rest: S::V,
+) -> [S::V; 3] {
+    // Written out per axis: closures (`[T; 3]::map`) would not inline into the AVX2 functions.
+    let (dx, dy, dz) = (
+        simd.sub(far[0], near[0]),
+        simd.sub(far[1], near[1]),
+        simd.sub(far[2], near[2]),
+    );
+    let length_squared = simd.add(
+        simd.add(simd.mul(dx, dx), simd.mul(dy, dy)),
+        simd.mul(dz, dz),
+    );
+    // Padding entries have length 0; the clamp keeps them at 0 force instead of 0/0.
+    let length = simd.sqrt(simd.max(length_squared, simd.splat(f32::MIN_POSITIVE)));
+    let k = simd.mul(stiffness, simd.sub(simd.splat(1.0), simd.div(rest, length)));
+    [simd.mul(k, dx), simd.mul(k, dy), simd.mul(k, dz)]
+}
+
+#[inline(always)]
+fn gather_slice<S: Simd>(simd: S, table: &GatherTable, positions: &Soa, slice: usize) -> [S::V; 3] {
+    let [xs, ys, zs] = &positions.axes;
+    let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
+    let own = [
+        simd.load(&positions.axes[0][slice]),
+        simd.load(&positions.axes[1][slice]),
+        simd.load(&positions.axes[2][slice]),
+    ];
+    let mut force = [simd.splat(0.0); 3];
+    for row in table.slices.rows(slice) {
+        let neighbor = [
+            load_row(simd, xs, &table.neighbor, row, u32::MAX),
+            load_row(simd, ys, &table.neighbor, row, u32::MAX),
+            load_row(simd, zs, &table.neighbor, row, u32::MAX),
+        ];
+        let stiffness = simd.load(table.stiffness.row(row));
+        let f = spring_force_rows(
+            simd,
+            own,
+            neighbor,
+            stiffness,
+            simd.load(&table.rest_length[row]),
+        );
+        force = [
+            simd.add(force[0], f[0]),
+            simd.add(force[1], f[1]),
+            simd.add(force[2], f[2]),
+        ];
     }
     force
 }
 
-/// Integrates one slice: writes `x(t+dt)` to `out.next` and updates `out.delta` in place.
-/// Returns a probe that is NaN if any new position is not finite.
 #[inline(always)]
-fn integrate_slice(
-    integrator: &Integrator,
-    current: &Soa,
+fn accumulate_slice<S: Simd>(
+    simd: S,
+    table: &IncidenceTable,
+    spring_forces: &Soa,
     slice: usize,
-    force: &[Block; 3],
-    out: SliceOut<'_>,
-) -> Block {
-    let force_scale = &integrator.force_scale[slice];
-    let velocity_scale = &integrator.velocity_scale[slice];
-    let mut probe = [0.0f32; LANES];
-    for (axis, (next, delta)) in out.next.into_iter().zip(out.delta).enumerate() {
-        let x = &current.axes[axis][slice];
-        let gravity = integrator.gravity_step[axis];
-        for lane in 0..LANES {
-            let moved = delta[lane] * velocity_scale[lane]
-                + force[axis][lane] * force_scale[lane]
-                + gravity;
-            // Select rather than scale by zero: a pinned vertex must stay put even if a force is inf.
-            let free = force_scale[lane] > 0.0;
-            let new_delta = if free { moved } else { 0.0 };
-            let new = if free { x[lane] + new_delta } else { x[lane] };
-            delta[lane] = new_delta;
-            next[lane] = new;
-            probe[lane] += new * 0.0;
-        }
+) -> [S::V; 3] {
+    let [xs, ys, zs] = &spring_forces.axes;
+    let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
+    let mut force = [simd.splat(0.0); 3];
+    for row in table.slices.rows(slice) {
+        let entry = &table.entry.rows[row];
+        // Flipping the sign bit negates exactly: the force on the spring's far end.
+        let fx = simd.flip_sign(load_row(simd, xs, &table.entry, row, !B_END), entry);
+        let fy = simd.flip_sign(load_row(simd, ys, &table.entry, row, !B_END), entry);
+        let fz = simd.flip_sign(load_row(simd, zs, &table.entry, row, !B_END), entry);
+        force = [
+            simd.add(force[0], fx),
+            simd.add(force[1], fy),
+            simd.add(force[2], fz),
+        ];
     }
-    probe
+    force
+}
+
+#[inline(always)]
+fn add_extra<S: Simd>(simd: S, force: [S::V; 3], extra: Option<&Soa>, slice: usize) -> [S::V; 3] {
+    match extra {
+        Some(extra) => [
+            simd.add(force[0], simd.load(&extra.axes[0][slice])),
+            simd.add(force[1], simd.load(&extra.axes[1][slice])),
+            simd.add(force[2], simd.load(&extra.axes[2][slice])),
+        ],
+        None => force,
+    }
 }
 
 /// One slice's outputs: the next positions and the position deltas.
 struct SliceOut<'a> {
     next: [&'a mut Block; 3],
     delta: [&'a mut Block; 3],
+}
+
+/// Integrates one slice: writes `x(t+dt)` to `out.next` and updates `out.delta` in place.
+/// Returns a probe that is NaN in lanes whose new position is not finite.
+#[inline(always)]
+fn integrate_slice<S: Simd>(
+    simd: S,
+    integrator: &Integrator,
+    current: &Soa,
+    slice: usize,
+    force: [S::V; 3],
+    out: SliceOut<'_>,
+) -> S::V {
+    let force_scale = simd.load(&integrator.force_scale[slice]);
+    let velocity_scale = simd.load(&integrator.velocity_scale[slice]);
+    let zero = simd.splat(0.0);
+    let mut probe = zero;
+    for (axis, (next, delta)) in out.next.into_iter().zip(out.delta).enumerate() {
+        let x = simd.load(&current.axes[axis][slice]);
+        let moved = simd.add(
+            simd.add(
+                simd.mul(simd.load(delta), velocity_scale),
+                simd.mul(force[axis], force_scale),
+            ),
+            simd.splat(integrator.gravity_step[axis]),
+        );
+        // Select rather than scale by zero: a pinned vertex must stay put even if a force is inf.
+        let new_delta = simd.select_positive(force_scale, moved, zero);
+        let new = simd.select_positive(force_scale, simd.add(x, new_delta), x);
+        simd.store(new_delta, delta);
+        simd.store(new, next);
+        probe = simd.add(probe, simd.mul(new, zero));
+    }
+    probe
 }
 
 /// Iterates a chunk's outputs slice by slice.
@@ -241,19 +375,10 @@ fn slice_outputs<'a>(chunk: VertexChunk<'a>) -> impl Iterator<Item = (usize, Sli
         })
 }
 
-#[inline(always)]
-fn add_extra(force: &mut [Block; 3], extra: Option<&Soa>, slice: usize) {
-    if let Some(extra) = extra {
-        for (f, e) in force.iter_mut().zip(&extra.axes) {
-            for lane in 0..LANES {
-                f[lane] += e[slice][lane];
-            }
-        }
-    }
-}
-
-fn probe_is_finite(probe: &Block) -> bool {
-    probe.iter().all(|p| *p == 0.0)
+fn is_finite_probe<S: Simd>(simd: S, probe: S::V) -> bool {
+    let mut lanes = [0.0; LANES];
+    simd.store(probe, &mut lanes);
+    lanes.iter().all(|p| *p == 0.0)
 }
 
 /// A vertex-pass chunk: its first slice, where its next positions go and its deltas.
@@ -271,32 +396,46 @@ pub struct ForceChunk<'a> {
     pub out: [&'a mut [Block]; 3],
 }
 
-/// Gather (PCA), fused: spring forces of each slice's vertices, then Verlet, in one pass.
-/// Returns false if a new position in the chunk is not finite.
-#[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+fma", "aarch64+neon"))]
-pub fn gather_and_integrate(
+#[inline(always)]
+fn gather_and_integrate_with<S: Simd>(
+    simd: S,
     table: &GatherTable,
     integrator: &Integrator,
     current: &Soa,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let mut probe = [0.0f32; LANES];
+    let mut probe = simd.splat(0.0);
     for (slice, out) in slice_outputs(chunk) {
-        let mut force = gather_slice(table, current, slice);
-        add_extra(&mut force, extra, slice);
-        let p = integrate_slice(integrator, current, slice, &force, out);
-        for lane in 0..LANES {
-            probe[lane] += p[lane];
-        }
+        let force = add_extra(
+            simd,
+            gather_slice(simd, table, current, slice),
+            extra,
+            slice,
+        );
+        probe = simd.add(
+            probe,
+            integrate_slice(simd, integrator, current, slice, force, out),
+        );
     }
-    probe_is_finite(&probe)
+    is_finite_probe(simd, probe)
 }
 
-/// Scatter (ECA) accumulation by incidence, fused with Verlet: each vertex sums the precomputed
-/// forces of its springs in a fixed order (deterministic for any thread count), then integrates.
-#[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+fma", "aarch64+neon"))]
-pub fn accumulate_and_integrate(
+dispatch! {
+    /// Gather (PCA), fused: spring forces of each slice's vertices, then Verlet, in one pass.
+    /// Returns false if a new position in the chunk is not finite.
+    pub fn gather_and_integrate(
+        table: &GatherTable,
+        integrator: &Integrator,
+        current: &Soa,
+        extra: Option<&Soa>,
+        chunk: VertexChunk<'_>,
+    ) -> bool => gather_and_integrate_with
+}
+
+#[inline(always)]
+fn accumulate_and_integrate_with<S: Simd>(
+    simd: S,
     table: &IncidenceTable,
     spring_forces: &Soa,
     integrator: &Integrator,
@@ -304,28 +443,46 @@ pub fn accumulate_and_integrate(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let mut probe = [0.0f32; LANES];
+    let mut probe = simd.splat(0.0);
     for (slice, out) in slice_outputs(chunk) {
-        let mut force = accumulate_slice(table, spring_forces, slice);
-        add_extra(&mut force, extra, slice);
-        let p = integrate_slice(integrator, current, slice, &force, out);
-        for lane in 0..LANES {
-            probe[lane] += p[lane];
-        }
+        let force = add_extra(
+            simd,
+            accumulate_slice(simd, table, spring_forces, slice),
+            extra,
+            slice,
+        );
+        probe = simd.add(
+            probe,
+            integrate_slice(simd, integrator, current, slice, force, out),
+        );
     }
-    probe_is_finite(&probe)
+    is_finite_probe(simd, probe)
 }
 
-/// Scatter (ECA) force pass: each spring's force on its `a` end, computed once, for rows
-/// `first_row..first_row + out.len()`.
-#[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+fma", "aarch64+neon"))]
-pub fn spring_forces(
+dispatch! {
+    /// Scatter (ECA) accumulation by incidence, fused with Verlet: each vertex sums the
+    /// precomputed forces of its springs in a fixed order (deterministic for any thread count),
+    /// then integrates.
+    pub fn accumulate_and_integrate(
+        table: &IncidenceTable,
+        spring_forces: &Soa,
+        integrator: &Integrator,
+        current: &Soa,
+        extra: Option<&Soa>,
+        chunk: VertexChunk<'_>,
+    ) -> bool => accumulate_and_integrate_with
+}
+
+#[inline(always)]
+fn spring_forces_with<S: Simd>(
+    simd: S,
     springs: &SpringTable,
     current: &Soa,
     first_row: usize,
     out: [&mut [Block]; 3],
 ) {
-    let [xs, ys, zs] = current.axes.each_ref().map(|a| a.as_flattened());
+    let [xs, ys, zs] = &current.axes;
+    let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
     let [ox, oy, oz] = out;
     for (k, ((fx, fy), fz)) in ox
         .iter_mut()
@@ -334,32 +491,34 @@ pub fn spring_forces(
         .enumerate()
     {
         let row = first_row + k;
-        let (a, b, rest) = (&springs.a[row], &springs.b[row], &springs.rest_length[row]);
-        for lane in 0..LANES {
-            let (i, j) = (a[lane] as usize, b[lane] as usize);
-            // SAFETY: `CpuSolver::new` builds spring ends from the numbering: `i, j < padded_len`.
-            let (dx, dy, dz) = unsafe {
-                (
-                    *xs.get_unchecked(j) - *xs.get_unchecked(i),
-                    *ys.get_unchecked(j) - *ys.get_unchecked(i),
-                    *zs.get_unchecked(j) - *zs.get_unchecked(i),
-                )
-            };
-            let k = spring_scale(
-                stiffness_at(&springs.stiffness, row, lane),
-                rest[lane],
-                dx * dx + dy * dy + dz * dz,
-            );
-            fx[lane] = k * dx;
-            fy[lane] = k * dy;
-            fz[lane] = k * dz;
-        }
+        let a = [
+            load_row(simd, xs, &springs.a, row, u32::MAX),
+            load_row(simd, ys, &springs.a, row, u32::MAX),
+            load_row(simd, zs, &springs.a, row, u32::MAX),
+        ];
+        let b = [
+            load_row(simd, xs, &springs.b, row, u32::MAX),
+            load_row(simd, ys, &springs.b, row, u32::MAX),
+            load_row(simd, zs, &springs.b, row, u32::MAX),
+        ];
+        let stiffness = simd.load(springs.stiffness.row(row));
+        let [f0, f1, f2] =
+            spring_force_rows(simd, a, b, stiffness, simd.load(&springs.rest_length[row]));
+        simd.store(f0, fx);
+        simd.store(f1, fy);
+        simd.store(f2, fz);
     }
 }
 
-/// Phase-separated gather (for per-phase timing): net spring force per vertex into `chunk.out`.
-#[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+fma", "aarch64+neon"))]
-pub fn gather_forces(table: &GatherTable, current: &Soa, chunk: ForceChunk<'_>) {
+dispatch! {
+    /// Scatter (ECA) force pass: each spring's force on its `a` end, computed once, for rows
+    /// `first_row..first_row + out.len()`.
+    pub fn spring_forces(springs: &SpringTable, current: &Soa, first_row: usize, out: [&mut [Block]; 3]) -> ()
+        => spring_forces_with
+}
+
+#[inline(always)]
+fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, force_of: impl Fn(usize) -> [S::V; 3]) {
     let [ox, oy, oz] = chunk.out;
     for (k, ((bx, by), bz)) in ox
         .iter_mut()
@@ -367,43 +526,75 @@ pub fn gather_forces(table: &GatherTable, current: &Soa, chunk: ForceChunk<'_>) 
         .zip(oz.iter_mut())
         .enumerate()
     {
-        let [fx, fy, fz] = gather_slice(table, current, chunk.first_slice + k);
-        (*bx, *by, *bz) = (fx, fy, fz);
+        let [fx, fy, fz] = force_of(chunk.first_slice + k);
+        simd.store(fx, bx);
+        simd.store(fy, by);
+        simd.store(fz, bz);
     }
 }
 
-/// Phase-separated scatter accumulation (for per-phase timing): net force per vertex.
-#[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+fma", "aarch64+neon"))]
-pub fn accumulate_forces(table: &IncidenceTable, spring_forces: &Soa, chunk: ForceChunk<'_>) {
-    let [ox, oy, oz] = chunk.out;
-    for (k, ((bx, by), bz)) in ox
-        .iter_mut()
-        .zip(oy.iter_mut())
-        .zip(oz.iter_mut())
-        .enumerate()
-    {
-        let [fx, fy, fz] = accumulate_slice(table, spring_forces, chunk.first_slice + k);
-        (*bx, *by, *bz) = (fx, fy, fz);
-    }
+#[inline(always)]
+fn gather_forces_with<S: Simd>(simd: S, table: &GatherTable, current: &Soa, chunk: ForceChunk<'_>) {
+    store_forces(simd, chunk, |slice| {
+        gather_slice(simd, table, current, slice)
+    });
 }
 
-/// Phase-separated Verlet (for per-phase timing) from net per-vertex forces.
-#[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+fma", "aarch64+neon"))]
-pub fn integrate(
+dispatch! {
+    /// Phase-separated gather (for per-phase timing): net spring force per vertex.
+    pub fn gather_forces(table: &GatherTable, current: &Soa, chunk: ForceChunk<'_>) -> () => gather_forces_with
+}
+
+#[inline(always)]
+fn accumulate_forces_with<S: Simd>(
+    simd: S,
+    table: &IncidenceTable,
+    spring_forces: &Soa,
+    chunk: ForceChunk<'_>,
+) {
+    store_forces(simd, chunk, |slice| {
+        accumulate_slice(simd, table, spring_forces, slice)
+    });
+}
+
+dispatch! {
+    /// Phase-separated scatter accumulation (for per-phase timing): net force per vertex.
+    pub fn accumulate_forces(table: &IncidenceTable, spring_forces: &Soa, chunk: ForceChunk<'_>) -> ()
+        => accumulate_forces_with
+}
+
+#[inline(always)]
+fn integrate_with<S: Simd>(
+    simd: S,
     integrator: &Integrator,
     current: &Soa,
     forces: &Soa,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let mut probe = [0.0f32; LANES];
+    let mut probe = simd.splat(0.0);
     for (slice, out) in slice_outputs(chunk) {
-        let mut force = forces.axes.each_ref().map(|a| a[slice]);
-        add_extra(&mut force, extra, slice);
-        let p = integrate_slice(integrator, current, slice, &force, out);
-        for lane in 0..LANES {
-            probe[lane] += p[lane];
-        }
+        let force = [
+            simd.load(&forces.axes[0][slice]),
+            simd.load(&forces.axes[1][slice]),
+            simd.load(&forces.axes[2][slice]),
+        ];
+        let force = add_extra(simd, force, extra, slice);
+        probe = simd.add(
+            probe,
+            integrate_slice(simd, integrator, current, slice, force, out),
+        );
     }
-    probe_is_finite(&probe)
+    is_finite_probe(simd, probe)
+}
+
+dispatch! {
+    /// Phase-separated Verlet (for per-phase timing) from net per-vertex forces.
+    pub fn integrate(
+        integrator: &Integrator,
+        current: &Soa,
+        forces: &Soa,
+        extra: Option<&Soa>,
+        chunk: VertexChunk<'_>,
+    ) -> bool => integrate_with
 }

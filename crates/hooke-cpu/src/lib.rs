@@ -15,6 +15,7 @@
 mod external;
 pub mod kernels;
 pub mod layout;
+pub mod simd;
 
 use std::time::{Duration, Instant};
 
@@ -24,8 +25,8 @@ use rayon::prelude::*;
 
 use external::ExternalForces;
 use kernels::{
-    B_END, Block, ForceChunk, GatherTable, IncidenceTable, Integrator, Soa, SpringTable, Stiffness,
-    VertexChunk,
+    B_END, Block, ForceChunk, GatherTable, IncidenceTable, IndexRows, InstructionSet, Integrator,
+    Soa, SpringTable, Stiffness, VertexChunk,
 };
 use layout::{LANES, Numbering, Slices, VertexOrder};
 
@@ -54,6 +55,7 @@ pub struct CpuOptions {
     /// Worker threads; `None` uses rayon's default (one per core, or `RAYON_NUM_THREADS`).
     pub threads: Option<usize>,
     pub order: VertexOrder,
+    pub instruction_set: InstructionSet,
 }
 
 impl Default for CpuOptions {
@@ -62,6 +64,7 @@ impl Default for CpuOptions {
             method: Method::Scatter,
             threads: None,
             order: VertexOrder::Mesh,
+            instruction_set: InstructionSet::Best,
         }
     }
 }
@@ -156,10 +159,6 @@ impl std::fmt::Debug for CpuSolver {
     }
 }
 
-fn is_uniform(stiffnesses: &[f64]) -> bool {
-    stiffnesses.windows(2).all(|w| w[0] == w[1])
-}
-
 fn into_blocks<T: Copy + Default>(values: Vec<T>) -> Vec<[T; LANES]> {
     values
         .chunks(LANES)
@@ -183,7 +182,7 @@ impl CpuSolver {
             Method::Gather => Topology::Gather(gather_table(model, &numbering)),
             Method::Scatter => {
                 let (springs, incidence) = scatter_tables(model, &numbering);
-                let spring_forces = Soa::zeros(springs.a.len() + 1);
+                let spring_forces = Soa::zeros(springs.a.rows.len() + 1);
                 Topology::Scatter {
                     springs,
                     incidence,
@@ -233,7 +232,7 @@ impl CpuSolver {
             .map_or(0, |e| e.bytes() + self.extra_forces.bytes());
         let (topology, forces) = match &self.topology {
             Topology::Gather(t) => (
-                std::mem::size_of_val(t.neighbor.as_slice())
+                t.neighbor.bytes()
                     + std::mem::size_of_val(t.rest_length.as_slice())
                     + t.stiffness.bytes()
                     + std::mem::size_of_val(t.slices.slice_rows.as_slice()),
@@ -244,11 +243,11 @@ impl CpuSolver {
                 incidence,
                 spring_forces,
             } => (
-                std::mem::size_of_val(springs.a.as_slice())
-                    + std::mem::size_of_val(springs.b.as_slice())
+                springs.a.bytes()
+                    + springs.b.bytes()
                     + std::mem::size_of_val(springs.rest_length.as_slice())
                     + springs.stiffness.bytes()
-                    + std::mem::size_of_val(incidence.entry.as_slice())
+                    + incidence.entry.bytes()
                     + std::mem::size_of_val(incidence.slices.slice_rows.as_slice()),
                 spring_forces.bytes(),
             ),
@@ -268,7 +267,7 @@ impl CpuSolver {
         vertex_streams
             + match &self.topology {
                 Topology::Gather(t) => {
-                    std::mem::size_of_val(t.neighbor.as_slice())
+                    t.neighbor.bytes()
                         + std::mem::size_of_val(t.rest_length.as_slice())
                         + t.stiffness.bytes()
                 }
@@ -277,11 +276,11 @@ impl CpuSolver {
                     incidence,
                     spring_forces,
                 } => {
-                    std::mem::size_of_val(springs.a.as_slice())
-                        + std::mem::size_of_val(springs.b.as_slice())
+                    springs.a.bytes()
+                        + springs.b.bytes()
                         + std::mem::size_of_val(springs.rest_length.as_slice())
                         + springs.stiffness.bytes()
-                        + std::mem::size_of_val(incidence.entry.as_slice())
+                        + incidence.entry.bytes()
                         // written once by the force pass, read back by the accumulation
                         + 2 * spring_forces.bytes()
                 }
@@ -300,13 +299,14 @@ impl CpuSolver {
     }
 
     fn step_fused(&mut self) -> Result<(), SimError> {
+        let isa = self.options.instruction_set;
         let has_extra = self.compute_external();
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let all_finite = match &mut self.topology {
             Topology::Gather(table) => self.pool.install(|| {
                 for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
-                    kernels::gather_and_integrate(table, integrator, current, extra, chunk)
+                    kernels::gather_and_integrate(isa, table, integrator, current, extra, chunk)
                 })
             }),
             Topology::Scatter {
@@ -314,10 +314,11 @@ impl CpuSolver {
                 incidence,
                 spring_forces,
             } => self.pool.install(|| {
-                compute_spring_forces(springs, current, spring_forces);
+                compute_spring_forces(isa, springs, current, spring_forces);
                 let spring_forces = &*spring_forces;
                 for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
                     kernels::accumulate_and_integrate(
+                        isa,
                         incidence,
                         spring_forces,
                         integrator,
@@ -333,6 +334,7 @@ impl CpuSolver {
 
     /// One step with every phase as its own pass, timed. Results equal [`Solver::step`]'s.
     pub fn step_phased(&mut self) -> Result<PhaseTimes, SimError> {
+        let isa = self.options.instruction_set;
         if self.phase_forces.blocks() != self.numbering.slice_count() {
             self.phase_forces = Soa::zeros(self.numbering.slice_count());
         }
@@ -348,7 +350,7 @@ impl CpuSolver {
             match &mut self.topology {
                 Topology::Gather(table) => {
                     for_each_force_chunk(phase_forces, |chunk| {
-                        kernels::gather_forces(table, current, chunk)
+                        kernels::gather_forces(isa, table, current, chunk)
                     });
                     times.force_calculation = start.elapsed();
                 }
@@ -357,12 +359,12 @@ impl CpuSolver {
                     incidence,
                     spring_forces,
                 } => {
-                    compute_spring_forces(springs, current, spring_forces);
+                    compute_spring_forces(isa, springs, current, spring_forces);
                     times.force_calculation = start.elapsed();
                     let start = Instant::now();
                     let spring_forces = &*spring_forces;
                     for_each_force_chunk(phase_forces, |chunk| {
-                        kernels::accumulate_forces(incidence, spring_forces, chunk);
+                        kernels::accumulate_forces(isa, incidence, spring_forces, chunk);
                     });
                     times.force_accumulation = Some(start.elapsed());
                 }
@@ -370,7 +372,7 @@ impl CpuSolver {
             let start = Instant::now();
             let phase_forces = &*phase_forces;
             let all_finite = for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
-                kernels::integrate(integrator, current, phase_forces, extra, chunk)
+                kernels::integrate(isa, integrator, current, phase_forces, extra, chunk)
             });
             times.integration = start.elapsed();
             all_finite
@@ -441,8 +443,13 @@ fn for_each_force_chunk(out: &mut Soa, kernel: impl Fn(ForceChunk<'_>) + Sync) {
         });
 }
 
-fn compute_spring_forces(springs: &SpringTable, current: &Soa, spring_forces: &mut Soa) {
-    let rows = springs.a.len();
+fn compute_spring_forces(
+    isa: InstructionSet,
+    springs: &SpringTable,
+    current: &Soa,
+    spring_forces: &mut Soa,
+) {
+    let rows = springs.a.rows.len();
     let [x, y, z] = &mut spring_forces.axes;
     x[..rows]
         .par_chunks_mut(SPRING_ROWS_PER_TASK)
@@ -450,8 +457,23 @@ fn compute_spring_forces(springs: &SpringTable, current: &Soa, spring_forces: &m
         .zip(z[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
         .enumerate()
         .for_each(|(task, ((x, y), z))| {
-            kernels::spring_forces(springs, current, task * SPRING_ROWS_PER_TASK, [x, y, z]);
+            kernels::spring_forces(
+                isa,
+                springs,
+                current,
+                task * SPRING_ROWS_PER_TASK,
+                [x, y, z],
+            );
         });
+}
+
+fn stiffness_of(model: &Model, per_entry: impl FnOnce() -> Vec<f32>) -> Stiffness {
+    match model.stiffnesses.first() {
+        Some(&first) if model.stiffnesses.iter().all(|k| *k == first) => {
+            Stiffness::uniform(first as f32)
+        }
+        _ => Stiffness::per_entry(into_blocks(per_entry())),
+    }
 }
 
 fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
@@ -470,57 +492,92 @@ fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
         },
         |k| (k as u32, 0.0, 0.0),
     );
-    let stiffness = if is_uniform(&model.stiffnesses) {
-        Stiffness::Uniform(model.stiffnesses.first().copied().unwrap_or(0.0) as f32)
-    } else {
-        Stiffness::PerEntry(into_blocks(entries.iter().map(|e| e.2).collect()))
-    };
     GatherTable {
         slices,
-        neighbor: into_blocks(entries.iter().map(|e| e.0).collect()),
+        neighbor: IndexRows::new(
+            into_blocks(entries.iter().map(|e| e.0).collect()),
+            u32::MAX,
+            numbering.padded_len,
+        ),
         rest_length: into_blocks(entries.iter().map(|e| e.1).collect()),
-        stiffness,
+        stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
     }
 }
 
+/// The order the scatter force pass visits springs in. Structured meshes have a handful of
+/// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
+/// ends of 8 consecutive springs consecutive vertices, so a row loads with vector loads. Other
+/// meshes are ordered by first end, which keeps position reads nearly sequential.
+fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
+    const MAX_CLASSES: usize = 16;
+    let offset = |s: u32| i64::from(ends[s as usize][1]) - i64::from(ends[s as usize][0]);
+    let mut counts = std::collections::HashMap::<i64, usize>::new();
+    for s in 0..ends.len() as u32 {
+        *counts.entry(offset(s)).or_default() += 1;
+    }
+    let mut common: Vec<(usize, i64)> = counts.iter().map(|(o, c)| (*c, *o)).collect();
+    common.sort_unstable_by(|a, b| b.cmp(a));
+    common.truncate(MAX_CLASSES);
+    let covered: usize = common.iter().map(|(c, _)| c).sum();
+    let mut order: Vec<u32> = (0..ends.len() as u32).collect();
+    if covered * 10 >= ends.len() * 9 {
+        let class: std::collections::HashMap<i64, usize> = common
+            .iter()
+            .enumerate()
+            .map(|(rank, (_, o))| (*o, rank))
+            .collect();
+        order.sort_by_key(|&s| {
+            let [a, b] = ends[s as usize];
+            (class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES), a, b)
+        });
+    } else {
+        order.sort_by_key(|&s| {
+            let [a, b] = ends[s as usize];
+            (a.min(b), a.max(b))
+        });
+    }
+    order
+}
+
 fn scatter_tables(model: &Model, numbering: &Numbering) -> (SpringTable, IncidenceTable) {
-    // Springs in order of their first internal endpoint, so the force pass reads positions
-    // nearly sequentially; `slot_of[s]` is model spring s's position in that order.
     let ends: Vec<[u32; 2]> = model
         .spring_ends
         .iter()
-        .map(|e| e.map(|v| numbering.internal[v as usize]))
+        .map(|e| {
+            let [a, b] = e.map(|v| numbering.internal[v as usize]);
+            [a.min(b), a.max(b)]
+        })
         .collect();
-    let mut order: Vec<u32> = (0..model.spring_count() as u32).collect();
-    order.sort_by_key(|&s| {
-        let [a, b] = ends[s as usize];
-        (a.min(b), a.max(b))
-    });
+    // `slot_of[s]` is model spring s's place in the force pass and force buffer.
+    let order = spring_order(&ends);
     let mut slot_of = vec![0u32; model.spring_count()];
     for (slot, &s) in order.iter().enumerate() {
         slot_of[s as usize] = slot as u32;
     }
     let rows = model.spring_count().div_ceil(LANES);
     let zero_slot = (rows * LANES) as u32;
+    let end_rows = |end: usize| {
+        IndexRows::new(
+            into_blocks(order.iter().map(|&s| ends[s as usize][end]).collect()),
+            u32::MAX,
+            numbering.padded_len,
+        )
+    };
     let springs = SpringTable {
-        a: into_blocks(order.iter().map(|&s| ends[s as usize][0]).collect()),
-        b: into_blocks(order.iter().map(|&s| ends[s as usize][1]).collect()),
+        a: end_rows(0),
+        b: end_rows(1),
         rest_length: into_blocks(
             order
                 .iter()
                 .map(|&s| model.rest_lengths[s as usize] as f32)
                 .collect(),
         ),
-        stiffness: if is_uniform(&model.stiffnesses) {
-            Stiffness::Uniform(model.stiffnesses.first().copied().unwrap_or(0.0) as f32)
-        } else {
-            Stiffness::PerEntry(into_blocks(
-                order
-                    .iter()
-                    .map(|&s| model.stiffnesses[s as usize] as f32)
-                    .collect(),
-            ))
-        },
+        stiffness: stiffness_of(model, || {
+            order
+                .iter()
+                .map(|&s| model.stiffnesses[s as usize] as f32)
+                .collect()
+        }),
     };
     let adjacency = &model.adjacency;
     let (slices, entries) = Slices::build(
@@ -535,7 +592,7 @@ fn scatter_tables(model: &Model, numbering: &Numbering) -> (SpringTable, Inciden
     );
     let incidence = IncidenceTable {
         slices,
-        entry: into_blocks(entries),
+        entry: IndexRows::new(into_blocks(entries), !B_END, zero_slot as usize + LANES),
     };
     (springs, incidence)
 }

@@ -10,6 +10,7 @@ use hooke_core::scene::{MeshGenerator, MeshSection, Scene, SceneFile};
 use hooke_core::{
     MassModel, Model, ModelOptions, SimError, SimParams, Solver, State, StiffnessModel, Wind,
 };
+use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
 
@@ -17,7 +18,7 @@ fn cpu(model: &Model, params: &SimParams, method: Method, threads: usize) -> Cpu
     let options = CpuOptions {
         method,
         threads: Some(threads),
-        order: VertexOrder::Mesh,
+        ..Default::default()
     };
     CpuSolver::new(model, params, options).expect("cpu solver")
 }
@@ -375,6 +376,7 @@ fn gather_scatter_orders_and_thread_counts_are_bit_identical() {
             method,
             threads: Some(threads),
             order,
+            ..Default::default()
         };
         let mut solver = CpuSolver::new(&model, &params, options).expect("solver");
         solver.step(150).expect("stable");
@@ -423,5 +425,28 @@ fn blow_up_is_reported_with_step_and_vertex() {
         assert!(step > 1 && step < 100_000);
         assert!(!scene.model.pinned[vertex]);
         assert_eq!(solver.steps_taken(), step, "{}", solver.describe());
+    }
+}
+
+#[test]
+fn avx2_and_portable_kernels_are_bit_identical() {
+    let (model, params) = everything_scene();
+    let run = |method, instruction_set| {
+        let options = CpuOptions {
+            method,
+            threads: Some(2),
+            order: VertexOrder::Mesh,
+            instruction_set,
+        };
+        let mut solver = CpuSolver::new(&model, &params, options).expect("solver");
+        solver.step(100).expect("stable");
+        solver.read_state()
+    };
+    for method in Method::ALL {
+        assert!(
+            run(method, InstructionSet::Best) == run(method, InstructionSet::Portable),
+            "{method:?}: {} differs from portable",
+            InstructionSet::Best.resolved_name()
+        );
     }
 }

@@ -1,0 +1,173 @@
+//! `hooke info`: what a scene is made of, its stable time step and what each method stores.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use comfy_table::Table;
+use hooke_core::stability::stability_limit;
+use hooke_cpu::layout::VertexOrder;
+use hooke_cpu::{CpuOptions, CpuSolver, Method};
+use serde::Serialize;
+
+use crate::format::{OutputFormat, bytes, table};
+use crate::scene_loading::load_scene;
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    #[arg(long, value_enum, default_value_t = OutputFormat::Table)]
+    pub format: OutputFormat,
+}
+
+#[derive(Debug, Serialize)]
+struct MethodMemory {
+    method: &'static str,
+    /// The paper's Table 1 model, in texels: RGB (3 floats) and RGBA (4 floats).
+    paper_rgb_texels: usize,
+    paper_rgba_texels: usize,
+    paper_bytes_fp32: usize,
+    /// What hooke's cpu solver allocates.
+    positions_bytes: usize,
+    topology_bytes: usize,
+    per_step_bytes: usize,
+    total_bytes: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct Info {
+    scene: String,
+    vertices: usize,
+    triangles: usize,
+    springs: usize,
+    pinned: usize,
+    total_mass_kg: f64,
+    /// `valence_histogram[v]` vertices have v springs.
+    valence_histogram: Vec<usize>,
+    max_valence: usize,
+    mean_valence: f64,
+    max_stable_dt: f64,
+    limiting_vertex: Option<usize>,
+    dt: f64,
+    memory: Vec<MethodMemory>,
+}
+
+pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
+    let scene = load_scene(&args.scene, true)?;
+    let model = &scene.model;
+    let (n_v, n_e) = (model.vertex_count(), model.spring_count());
+    let histogram = model.valence_histogram();
+    let max_valence = histogram.len().saturating_sub(1);
+    let limit = stability_limit(model, scene.params.damping);
+    let mut memory = Vec::new();
+    for method in Method::ALL {
+        let options = CpuOptions {
+            method,
+            threads: Some(1),
+            order: VertexOrder::Mesh,
+            ..Default::default()
+        };
+        let used = CpuSolver::new(model, &scene.params, options)?.memory();
+        // Table 1: PCA stores N references+constants per vertex (RGB) and position+mass (RGBA);
+        // ECA stores a force per edge (RGB) and edges plus positions (RGBA).
+        let (rgb, rgba) = match method {
+            Method::Gather => (max_valence * n_v, n_v),
+            Method::Scatter => (n_e, n_e + n_v),
+        };
+        memory.push(MethodMemory {
+            method: method.name(),
+            paper_rgb_texels: rgb,
+            paper_rgba_texels: rgba,
+            paper_bytes_fp32: 12 * rgb + 16 * rgba,
+            positions_bytes: used.positions,
+            topology_bytes: used.topology,
+            per_step_bytes: used.per_step,
+            total_bytes: used.total(),
+        });
+    }
+    let info = Info {
+        scene: scene.name.clone(),
+        vertices: n_v,
+        triangles: model.triangles.len(),
+        springs: n_e,
+        pinned: model.pinned.iter().filter(|p| **p).count(),
+        total_mass_kg: model.total_mass(),
+        mean_valence: 2.0 * n_e as f64 / n_v as f64,
+        valence_histogram: histogram,
+        max_valence,
+        max_stable_dt: limit.max_dt,
+        limiting_vertex: limit.limiting_vertex,
+        dt: scene.params.dt,
+        memory,
+    };
+    match args.format {
+        OutputFormat::Json => println!("{}", serde_json::to_string_pretty(&info)?),
+        OutputFormat::Table => print_info(&info),
+    }
+    Ok(())
+}
+
+fn print_info(info: &Info) {
+    println!("scene           {}", info.scene);
+    println!(
+        "mesh            {} vertices, {} triangles, {} springs, {} pinned",
+        info.vertices, info.triangles, info.springs, info.pinned
+    );
+    println!("total mass      {:.6} kg", info.total_mass_kg);
+    println!(
+        "valence         mean {:.2}, max {} (N in the paper's Table 1)",
+        info.mean_valence, info.max_valence
+    );
+    let mut valences = Table::new();
+    valences.set_header(vec!["valence", "vertices", "share"]);
+    for (valence, count) in info
+        .valence_histogram
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| **c > 0)
+    {
+        valences.add_row(vec![
+            valence.to_string(),
+            count.to_string(),
+            format!("{:.1}%", 100.0 * *count as f64 / info.vertices as f64),
+        ]);
+    }
+    println!("{}", table(valences));
+    println!(
+        "stable dt       {:.4e} s (set by vertex {}); this scene uses dt = {:.4e} s{}",
+        info.max_stable_dt,
+        info.limiting_vertex
+            .map_or("-".to_owned(), |v| v.to_string()),
+        info.dt,
+        if info.dt > info.max_stable_dt {
+            "  ABOVE THE BOUND"
+        } else {
+            ""
+        }
+    );
+    let mut memory = Table::new();
+    memory.set_header(vec![
+        "method",
+        "paper RGB texels",
+        "paper RGBA texels",
+        "paper fp32 bytes",
+        "hooke positions",
+        "hooke topology",
+        "hooke per-step",
+        "hooke total",
+    ]);
+    for m in &info.memory {
+        memory.add_row(vec![
+            m.method.to_owned(),
+            m.paper_rgb_texels.to_string(),
+            m.paper_rgba_texels.to_string(),
+            bytes(m.paper_bytes_fp32),
+            bytes(m.positions_bytes),
+            bytes(m.topology_bytes),
+            bytes(m.per_step_bytes),
+            bytes(m.total_bytes),
+        ]);
+    }
+    println!("memory (paper's Table 1 model next to what the cpu solver allocates):");
+    println!("{}", table(memory));
+}

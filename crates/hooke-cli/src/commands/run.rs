@@ -1,0 +1,231 @@
+//! `hooke run`: simulate a scene and write frames as binary PLY.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use clap::Args;
+use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
+use hooke_core::mesh::{write_ply_frame, write_ply_state};
+use hooke_core::scene::Scene;
+use hooke_core::{Solver, State};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::scene_loading::load_scene;
+use crate::solvers::SolverArgs;
+
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+    /// Number of steps (default: the scene's simulation.steps).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Directory for frames and the final state (default: out/<scene name>).
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Steps between written frames (default: the scene's simulation.frame_every).
+    #[arg(long)]
+    pub frame_every: Option<u64>,
+    /// Write only the final state, no frames.
+    #[arg(long)]
+    pub no_frames: bool,
+    /// Run even if dt exceeds the stability bound.
+    #[arg(long)]
+    pub allow_unstable: bool,
+}
+
+/// Steps between checks for an exploding simulation (non-finite values are caught every step).
+const HEALTH_CHECK_INTERVAL: u64 = 100;
+
+#[derive(Debug, Serialize)]
+struct Summary {
+    scene: String,
+    solver: String,
+    vertices: usize,
+    springs: usize,
+    steps: u64,
+    dt: f64,
+    simulated_seconds: f64,
+    solver_seconds: f64,
+    steps_per_second: f64,
+    ms_per_step: f64,
+    energy_kinetic: f64,
+    energy_elastic: f64,
+    energy_gravitational: f64,
+    energy_total: f64,
+    max_strain: f64,
+    frames_written: usize,
+    output: PathBuf,
+}
+
+pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+    let scene = load_scene(&args.scene, args.allow_unstable)?;
+    let steps = args.steps.unwrap_or(scene.steps);
+    let frame_every = args.frame_every.unwrap_or(scene.frame_every).max(1);
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(&scene.name));
+    std::fs::create_dir_all(&output)
+        .with_context(|| format!("creating output directory {}", output.display()))?;
+
+    let mut solver = args.solver.build(&scene.model, &scene.params)?;
+    eprintln!(
+        "{}: {} vertices, {} springs, dt {:.3e} s (stable up to {:.3e} s), {} steps on {}",
+        scene.name,
+        scene.model.vertex_count(),
+        scene.model.spring_count(),
+        scene.params.dt,
+        scene.max_stable_dt,
+        steps,
+        solver.describe()
+    );
+
+    let progress = progress_bar(steps);
+    let mut frames_written = 0usize;
+    let write_frame = |state: &State, step: u64, written: &mut usize| -> anyhow::Result<()> {
+        if !args.no_frames {
+            let path = output.join(format!("frame-{step:07}.ply"));
+            write_ply_frame(&path, &state.positions, &scene.model.triangles)
+                .with_context(|| format!("writing {}", path.display()))?;
+            *written += 1;
+        }
+        Ok(())
+    };
+    write_frame(&solver.read_state(), 0, &mut frames_written)?;
+
+    let mut solver_time = Duration::ZERO;
+    let mut step = 0u64;
+    while step < steps {
+        let until_frame = frame_every - step % frame_every;
+        let until_check = HEALTH_CHECK_INTERVAL - step % HEALTH_CHECK_INTERVAL;
+        let batch = (steps - step).min(until_frame).min(until_check);
+        let start = Instant::now();
+        let result = solver.step(batch as u32);
+        solver_time += start.elapsed();
+        result
+            .map_err(anyhow::Error::from)
+            .with_context(|| stopped_message(&output, frames_written))?;
+        step += batch;
+        progress.set_position(step);
+        let state = solver.read_state();
+        check_health(&scene.model, &state.positions, solver.steps_taken())
+            .map_err(anyhow::Error::from)
+            .with_context(|| stopped_message(&output, frames_written))?;
+        if step % frame_every == 0 || step == steps {
+            write_frame(&state, step, &mut frames_written)?;
+        }
+    }
+    progress.finish_and_clear();
+
+    let state = solver.read_state();
+    let final_path = output.join("final-state.ply");
+    write_ply_state(
+        &final_path,
+        &state.positions,
+        &state.previous_positions,
+        &scene.model.triangles,
+    )
+    .with_context(|| format!("writing {}", final_path.display()))?;
+    let summary = summarize(
+        &scene,
+        solver.as_ref(),
+        &state,
+        steps,
+        solver_time,
+        frames_written,
+        &output,
+    );
+    print_summary(&summary, &energy(&scene.model, &state, &scene.params));
+    let json = serde_json::to_string_pretty(&summary)?;
+    let summary_path = output.join("summary.json");
+    std::fs::write(&summary_path, json)
+        .with_context(|| format!("writing {}", summary_path.display()))?;
+    Ok(())
+}
+
+fn stopped_message(output: &Path, frames: usize) -> String {
+    format!(
+        "simulation stopped; the {frames} frames written before are in {}",
+        output.display()
+    )
+}
+
+fn progress_bar(steps: u64) -> ProgressBar {
+    let bar = ProgressBar::new(steps);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {per_sec}  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+fn summarize(
+    scene: &Scene,
+    solver: &dyn Solver,
+    state: &State,
+    steps: u64,
+    solver_time: Duration,
+    frames_written: usize,
+    output: &Path,
+) -> Summary {
+    let e = energy(&scene.model, state, &scene.params);
+    let seconds = solver_time.as_secs_f64();
+    Summary {
+        scene: scene.name.clone(),
+        solver: solver.describe(),
+        vertices: scene.model.vertex_count(),
+        springs: scene.model.spring_count(),
+        steps,
+        dt: scene.params.dt,
+        simulated_seconds: steps as f64 * scene.params.dt,
+        solver_seconds: seconds,
+        steps_per_second: if seconds > 0.0 {
+            steps as f64 / seconds
+        } else {
+            0.0
+        },
+        ms_per_step: if steps > 0 {
+            1e3 * seconds / steps as f64
+        } else {
+            0.0
+        },
+        energy_kinetic: e.kinetic,
+        energy_elastic: e.elastic,
+        energy_gravitational: e.gravitational,
+        energy_total: e.total(),
+        max_strain: max_strain(&scene.model, &state.positions).0,
+        frames_written,
+        output: output.to_path_buf(),
+    }
+}
+
+fn print_summary(s: &Summary, e: &Energy) {
+    println!("scene        {}", s.scene);
+    println!("solver       {}", s.solver);
+    println!(
+        "steps        {} x {:.3e} s = {:.4} s simulated",
+        s.steps, s.dt, s.simulated_seconds
+    );
+    println!(
+        "speed        {:.0} steps/s ({:.3} ms/step, solver only)",
+        s.steps_per_second, s.ms_per_step
+    );
+    println!(
+        "energy       {:.6e} J (kinetic {:.3e}, elastic {:.3e}, gravitational {:.3e})",
+        e.total(),
+        e.kinetic,
+        e.elastic,
+        e.gravitational
+    );
+    println!("max strain   {:.4}%", 100.0 * s.max_strain);
+    println!(
+        "output       {} ({} frames, final-state.ply, summary.json)",
+        s.output.display(),
+        s.frames_written
+    );
+}

@@ -1,0 +1,234 @@
+//! The few 8-lane float operations the kernels need, portable and with AVX2.
+//!
+//! Kernels are written once, generic over [`Simd`], and instantiated for each implementation.
+//! Every operation is exact IEEE arithmetic per lane (no fused multiply-add, no approximate
+//! reciprocals), so both implementations produce bit-identical results.
+
+use crate::layout::LANES;
+
+/// One lane-block (8 vertices or springs) of one scalar quantity.
+pub type Block = [f32; LANES];
+
+/// 8-lane float operations. A value of the implementing type is proof the CPU can run them.
+pub trait Simd: Copy {
+    type V: Copy;
+    fn splat(self, value: f32) -> Self::V;
+    fn load(self, block: &Block) -> Self::V;
+    fn store(self, value: Self::V, block: &mut Block);
+    /// `values[index[lane] & mask]` per lane.
+    ///
+    /// # Safety
+    /// Every masked index must be below `values.len()`.
+    unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> Self::V;
+    fn add(self, a: Self::V, b: Self::V) -> Self::V;
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V;
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V;
+    fn div(self, a: Self::V, b: Self::V) -> Self::V;
+    fn sqrt(self, a: Self::V) -> Self::V;
+    /// Lane-wise maximum of two non-NaN values.
+    fn max(self, a: Self::V, b: Self::V) -> Self::V;
+    /// Flips the sign of lanes whose `sign` word has its top bit set.
+    fn flip_sign(self, a: Self::V, sign: &[u32; LANES]) -> Self::V;
+    /// `if test > 0 { then } else { otherwise }` per lane.
+    fn select_positive(self, test: Self::V, then: Self::V, otherwise: Self::V) -> Self::V;
+}
+
+/// Plain loops over arrays; any CPU.
+#[derive(Clone, Copy, Debug)]
+pub struct Portable;
+
+fn map2(a: Block, b: Block, f: impl Fn(f32, f32) -> f32) -> Block {
+    std::array::from_fn(|lane| f(a[lane], b[lane]))
+}
+
+impl Simd for Portable {
+    type V = Block;
+    #[inline(always)]
+    fn splat(self, value: f32) -> Block {
+        [value; LANES]
+    }
+    #[inline(always)]
+    fn load(self, block: &Block) -> Block {
+        *block
+    }
+    #[inline(always)]
+    fn store(self, value: Block, block: &mut Block) {
+        *block = value;
+    }
+    #[inline(always)]
+    unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> Block {
+        // SAFETY: the caller guarantees every masked index is in bounds.
+        std::array::from_fn(|lane| unsafe { *values.get_unchecked((index[lane] & mask) as usize) })
+    }
+    #[inline(always)]
+    fn add(self, a: Block, b: Block) -> Block {
+        map2(a, b, |x, y| x + y)
+    }
+    #[inline(always)]
+    fn sub(self, a: Block, b: Block) -> Block {
+        map2(a, b, |x, y| x - y)
+    }
+    #[inline(always)]
+    fn mul(self, a: Block, b: Block) -> Block {
+        map2(a, b, |x, y| x * y)
+    }
+    #[inline(always)]
+    fn div(self, a: Block, b: Block) -> Block {
+        map2(a, b, |x, y| x / y)
+    }
+    #[inline(always)]
+    fn sqrt(self, a: Block) -> Block {
+        a.map(f32::sqrt)
+    }
+    #[inline(always)]
+    fn max(self, a: Block, b: Block) -> Block {
+        map2(a, b, |x, y| if x > y { x } else { y })
+    }
+    #[inline(always)]
+    fn flip_sign(self, a: Block, sign: &[u32; LANES]) -> Block {
+        std::array::from_fn(|lane| f32::from_bits(a[lane].to_bits() ^ (sign[lane] & 0x8000_0000)))
+    }
+    #[inline(always)]
+    fn select_positive(self, test: Block, then: Block, otherwise: Block) -> Block {
+        std::array::from_fn(|lane| {
+            if test[lane] > 0.0 {
+                then[lane]
+            } else {
+                otherwise[lane]
+            }
+        })
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub use avx2::Avx2;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use super::{Block, LANES, Simd};
+
+    /// AVX2 intrinsics. Only [`Avx2::detect`] makes one, after checking the CPU.
+    #[derive(Clone, Copy, Debug)]
+    pub struct Avx2(());
+
+    impl Avx2 {
+        pub fn detect() -> Option<Self> {
+            std::arch::is_x86_feature_detected!("avx2").then_some(Self(()))
+        }
+    }
+
+    // SAFETY (every `unsafe` block below): an `Avx2` value exists only if the CPU has AVX2, and
+    // the kernels using these methods are compiled with AVX2 enabled (see `kernels::dispatch`),
+    // so the intrinsics are supported and inline. Loads and stores go through references to
+    // 8-float blocks, which are exactly 32 readable/writable bytes.
+    impl Simd for Avx2 {
+        type V = __m256;
+        #[inline(always)]
+        fn splat(self, value: f32) -> __m256 {
+            unsafe { _mm256_set1_ps(value) }
+        }
+        #[inline(always)]
+        fn load(self, block: &Block) -> __m256 {
+            unsafe { _mm256_loadu_ps(block.as_ptr()) }
+        }
+        #[inline(always)]
+        fn store(self, value: __m256, block: &mut Block) {
+            unsafe { _mm256_storeu_ps(block.as_mut_ptr(), value) }
+        }
+        #[inline(always)]
+        unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> __m256 {
+            // SAFETY: the caller guarantees every masked index is in bounds; masked indices are
+            // below 2^31, so they are valid i32 offsets.
+            unsafe {
+                let index = _mm256_and_si256(
+                    _mm256_loadu_si256(index.as_ptr().cast()),
+                    _mm256_set1_epi32(mask as i32),
+                );
+                _mm256_i32gather_ps::<4>(values.as_ptr(), index)
+            }
+        }
+        #[inline(always)]
+        fn add(self, a: __m256, b: __m256) -> __m256 {
+            unsafe { _mm256_add_ps(a, b) }
+        }
+        #[inline(always)]
+        fn sub(self, a: __m256, b: __m256) -> __m256 {
+            unsafe { _mm256_sub_ps(a, b) }
+        }
+        #[inline(always)]
+        fn mul(self, a: __m256, b: __m256) -> __m256 {
+            unsafe { _mm256_mul_ps(a, b) }
+        }
+        #[inline(always)]
+        fn div(self, a: __m256, b: __m256) -> __m256 {
+            unsafe { _mm256_div_ps(a, b) }
+        }
+        #[inline(always)]
+        fn sqrt(self, a: __m256) -> __m256 {
+            unsafe { _mm256_sqrt_ps(a) }
+        }
+        #[inline(always)]
+        fn max(self, a: __m256, b: __m256) -> __m256 {
+            unsafe { _mm256_max_ps(a, b) }
+        }
+        #[inline(always)]
+        fn flip_sign(self, a: __m256, sign: &[u32; LANES]) -> __m256 {
+            unsafe {
+                let bits = _mm256_and_si256(
+                    _mm256_loadu_si256(sign.as_ptr().cast()),
+                    _mm256_set1_epi32(i32::MIN),
+                );
+                _mm256_xor_ps(a, _mm256_castsi256_ps(bits))
+            }
+        }
+        #[inline(always)]
+        fn select_positive(self, test: __m256, then: __m256, otherwise: __m256) -> __m256 {
+            unsafe {
+                let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(test, _mm256_setzero_ps());
+                _mm256_blendv_ps(otherwise, then, positive)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_matches_portable_bit_for_bit() {
+        let Some(avx2) = Avx2::detect() else { return };
+        let a: Block = [1.5, -2.0, 3.25, 1e-30, 7.0, -0.0, 1e20, 0.1];
+        let b: Block = [0.3, 0.7, -1.1, 2.0, 1e-20, 5.0, 3.0, 0.2];
+        let check = |p: Block, v: std::arch::x86_64::__m256| {
+            let mut out = [0.0; LANES];
+            avx2.store(v, &mut out);
+            assert_eq!(p.map(f32::to_bits), out.map(f32::to_bits));
+        };
+        let (pa, pb) = (Portable.load(&a), Portable.load(&b));
+        let (va, vb) = (avx2.load(&a), avx2.load(&b));
+        check(Portable.div(pa, pb), avx2.div(va, vb));
+        check(
+            Portable.sqrt(Portable.max(pa, pb)),
+            avx2.sqrt(avx2.max(va, vb)),
+        );
+        let sign = [0, 0x8000_0000, 0, 0x8000_0005, 0, 0, 0x8000_0000, 1];
+        check(Portable.flip_sign(pa, &sign), avx2.flip_sign(va, &sign));
+        check(
+            Portable.select_positive(pa, pb, pa),
+            avx2.select_positive(va, vb, va),
+        );
+        let values: Vec<f32> = (0..40).map(|i| i as f32 * 0.5).collect();
+        let index = [3, 39, 0, 7 | 0x8000_0000, 12, 12, 1, 30];
+        // SAFETY: every masked index is below 40.
+        unsafe {
+            check(
+                Portable.gather(&values, &index, !0x8000_0000),
+                avx2.gather(&values, &index, !0x8000_0000),
+            )
+        };
+    }
+}
