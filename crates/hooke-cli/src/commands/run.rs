@@ -116,7 +116,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         check_health(&scene.model, &state.positions, solver.steps_taken())
             .map_err(anyhow::Error::from)
             .with_context(|| stopped_message(&output, frames_written))?;
-        if step % frame_every == 0 || step == steps {
+        if step.is_multiple_of(frame_every) || step == steps {
             write_frame(&state, step, &mut frames_written)?;
         }
     }
