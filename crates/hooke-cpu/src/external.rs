@@ -103,7 +103,7 @@ impl ExternalForces {
     /// Writes this step's forces (N) into `out`, from positions `current` and deltas
     /// `x(t) - x(t - dt)`.
     pub fn compute(&mut self, current: &Soa, delta: &Soa, out: &mut Soa) {
-        for (o, c) in out.axes.iter_mut().zip(&self.constant.axes) {
+        for (o, c) in out.axes_mut().into_iter().zip(self.constant.axes()) {
             o.copy_from_slice(c);
         }
         for drag in &self.drags {
@@ -137,7 +137,7 @@ impl ExternalForces {
                     };
                 });
             let wind = &*wind;
-            let [ox, oy, oz] = &mut out.axes;
+            let [ox, oy, oz] = out.axes_mut();
             ox.par_iter_mut()
                 .zip(oy.par_iter_mut())
                 .zip(oz.par_iter_mut())

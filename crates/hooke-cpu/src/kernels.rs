@@ -17,45 +17,12 @@
 //! from 2 m at dt = 1e-4 s loses 21% of its distance that way). Stored as `d` they keep their
 //! own precision, and only `x + d` rounds, without feeding back into the velocity.
 
+pub use crate::lanes::{Lanes, Soa};
 use crate::layout::{LANES, Slices};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
 pub use crate::simd::Block;
 use crate::simd::{Portable, Simd};
-
-/// Three axes of per-vertex (or per-spring) vectors, in blocks of 8.
-#[derive(Clone, Debug, Default)]
-pub struct Soa {
-    pub axes: [Vec<Block>; 3],
-}
-
-impl Soa {
-    pub fn zeros(blocks: usize) -> Self {
-        Self {
-            axes: std::array::from_fn(|_| vec![[0.0; LANES]; blocks]),
-        }
-    }
-
-    pub fn blocks(&self) -> usize {
-        self.axes[0].len()
-    }
-
-    pub fn get(&self, index: usize) -> [f32; 3] {
-        self.axes
-            .each_ref()
-            .map(|a| a[index / LANES][index % LANES])
-    }
-
-    pub fn set(&mut self, index: usize, value: [f32; 3]) {
-        for (axis, v) in self.axes.iter_mut().zip(value) {
-            axis[index / LANES][index % LANES] = v;
-        }
-    }
-
-    pub fn bytes(&self) -> usize {
-        3 * self.blocks() * std::mem::size_of::<Block>()
-    }
-}
 
 /// Spring stiffness per entry, or one value for all. A uniform stiffness is one row read with
 /// stride 0: branch-free in the kernels, and it saves a memory stream.
@@ -88,36 +55,68 @@ impl Stiffness {
     }
 }
 
-/// Rows of 8 indices, each flagged when its indices are consecutive (`i, i+1, ..., i+7`), as
-/// interior rows of a regularly numbered mesh are: those load with one vector load, the others
-/// with a gather.
+/// Rows of 8 index entries (an index, plus flag bits above `mask` such as [`B_END`]).
+///
+/// A row whose masked indices run consecutively (`i, i+1, ..., i+7`) with the same flags in
+/// every lane, as interior rows of a regularly numbered mesh do, is stored as its first entry
+/// and loads with one vector load; any other row is stored whole and loads with a gather. That
+/// cuts the index stream of a grid from 32 to 5 bytes per row.
 #[derive(Clone, Debug, Default)]
 pub struct IndexRows {
-    pub rows: Vec<[u32; LANES]>,
-    pub contiguous: Vec<bool>,
+    /// Per row: its lane-0 entry if contiguous, else its position in `gathered`.
+    head: Vec<u32>,
+    contiguous: Vec<bool>,
+    gathered: Vec<[u32; LANES]>,
 }
 
 impl IndexRows {
     /// Flags rows whose masked indices run consecutively and stay below `limit`.
     pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize) -> Self {
-        let contiguous = rows
-            .iter()
-            .map(|r| {
-                let first = (r[0] & mask) as usize;
-                first + LANES <= limit
-                    && (0..LANES).all(|lane| (r[lane] & mask) as usize == first + lane)
-            })
-            .collect();
-        Self { rows, contiguous }
+        let mut table = Self::default();
+        for r in rows {
+            let first = (r[0] & mask) as usize;
+            let contiguous = first + LANES <= limit
+                && (0..LANES).all(|lane| {
+                    (r[lane] & mask) as usize == first + lane && r[lane] & !mask == r[0] & !mask
+                });
+            table.contiguous.push(contiguous);
+            if contiguous {
+                table.head.push(r[0]);
+            } else {
+                table.head.push(table.gathered.len() as u32);
+                table.gathered.push(r);
+            }
+        }
+        table
+    }
+
+    pub fn len(&self) -> usize {
+        self.head.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.head.is_empty()
+    }
+
+    /// The 8 entries of `row`.
+    pub fn row(&self, row: usize) -> [u32; LANES] {
+        let head = self.head[row];
+        if self.contiguous[row] {
+            std::array::from_fn(|lane| head + lane as u32)
+        } else {
+            self.gathered[head as usize]
+        }
     }
 
     pub fn bytes(&self) -> usize {
-        std::mem::size_of_val(self.rows.as_slice()) + self.contiguous.len()
+        std::mem::size_of_val(self.head.as_slice())
+            + self.contiguous.len()
+            + std::mem::size_of_val(self.gathered.as_slice())
     }
 
     /// Share of rows that load contiguously.
     pub fn contiguous_share(&self) -> f64 {
-        self.contiguous.iter().filter(|c| **c).count() as f64 / self.rows.len().max(1) as f64
+        self.contiguous.iter().filter(|c| **c).count() as f64 / self.len().max(1) as f64
     }
 }
 
@@ -155,8 +154,8 @@ pub struct IncidenceTable {
 /// Per-vertex integration constants (see the module docs).
 #[derive(Clone, Debug)]
 pub struct Integrator {
-    pub force_scale: Vec<Block>,
-    pub velocity_scale: Vec<Block>,
+    /// Per vertex: `dt^2 / m` (axis 0) and `1 - c dt / m` (axis 1).
+    pub scales: Lanes<2>,
     /// `g dt^2`, m.
     pub gravity_step: [f32; 3],
 }
@@ -202,20 +201,39 @@ macro_rules! dispatch {
     };
 }
 
-/// `values[index[lane] & mask]` for the 8 lanes of `row`.
+/// `values[entry & mask]` for the 8 entries of `row`; with `signed`, negated in lanes whose
+/// entry has the [`B_END`] bit.
 #[inline(always)]
-fn load_row<S: Simd>(simd: S, values: &[f32], rows: &IndexRows, row: usize, mask: u32) -> S::V {
-    let index = &rows.rows[row];
+fn load_row<S: Simd>(
+    simd: S,
+    values: &[f32],
+    rows: &IndexRows,
+    row: usize,
+    mask: u32,
+    signed: bool,
+) -> S::V {
+    let head = rows.head[row];
     if rows.contiguous[row] {
-        let first = (index[0] & mask) as usize;
+        let first = (head & mask) as usize;
         let block: &Block = values[first..first + LANES]
             .try_into()
             .expect("invariant: a slice of LANES floats converts to a block");
-        simd.load(block)
+        let value = simd.load(block);
+        if signed {
+            simd.flip_sign(value, &[head; LANES])
+        } else {
+            value
+        }
     } else {
+        let index = &rows.gathered[head as usize];
         // SAFETY: `CpuSolver::new` builds every index (masked) below `values.len()`: vertex
         // indices below `padded_len`, spring slots below the force buffer's length.
-        unsafe { simd.gather(values, index, mask) }
+        let value = unsafe { simd.gather(values, index, mask) };
+        if signed {
+            simd.flip_sign(value, index)
+        } else {
+            value
+        }
     }
 }
 
@@ -246,19 +264,19 @@ fn spring_force_rows<S: Simd>(
 
 #[inline(always)]
 fn gather_slice<S: Simd>(simd: S, table: &GatherTable, positions: &Soa, slice: usize) -> [S::V; 3] {
-    let [xs, ys, zs] = &positions.axes;
+    let [xs, ys, zs] = positions.axes();
     let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
     let own = [
-        simd.load(&positions.axes[0][slice]),
-        simd.load(&positions.axes[1][slice]),
-        simd.load(&positions.axes[2][slice]),
+        simd.load(&positions.axis(0)[slice]),
+        simd.load(&positions.axis(1)[slice]),
+        simd.load(&positions.axis(2)[slice]),
     ];
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
         let neighbor = [
-            load_row(simd, xs, &table.neighbor, row, u32::MAX),
-            load_row(simd, ys, &table.neighbor, row, u32::MAX),
-            load_row(simd, zs, &table.neighbor, row, u32::MAX),
+            load_row(simd, xs, &table.neighbor, row, u32::MAX, false),
+            load_row(simd, ys, &table.neighbor, row, u32::MAX, false),
+            load_row(simd, zs, &table.neighbor, row, u32::MAX, false),
         ];
         let stiffness = simd.load(table.stiffness.row(row));
         let f = spring_force_rows(
@@ -284,15 +302,14 @@ fn accumulate_slice<S: Simd>(
     spring_forces: &Soa,
     slice: usize,
 ) -> [S::V; 3] {
-    let [xs, ys, zs] = &spring_forces.axes;
+    let [xs, ys, zs] = spring_forces.axes();
     let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
-        let entry = &table.entry.rows[row];
         // Flipping the sign bit negates exactly: the force on the spring's far end.
-        let fx = simd.flip_sign(load_row(simd, xs, &table.entry, row, !B_END), entry);
-        let fy = simd.flip_sign(load_row(simd, ys, &table.entry, row, !B_END), entry);
-        let fz = simd.flip_sign(load_row(simd, zs, &table.entry, row, !B_END), entry);
+        let fx = load_row(simd, xs, &table.entry, row, !B_END, true);
+        let fy = load_row(simd, ys, &table.entry, row, !B_END, true);
+        let fz = load_row(simd, zs, &table.entry, row, !B_END, true);
         force = [
             simd.add(force[0], fx),
             simd.add(force[1], fy),
@@ -306,9 +323,9 @@ fn accumulate_slice<S: Simd>(
 fn add_extra<S: Simd>(simd: S, force: [S::V; 3], extra: Option<&Soa>, slice: usize) -> [S::V; 3] {
     match extra {
         Some(extra) => [
-            simd.add(force[0], simd.load(&extra.axes[0][slice])),
-            simd.add(force[1], simd.load(&extra.axes[1][slice])),
-            simd.add(force[2], simd.load(&extra.axes[2][slice])),
+            simd.add(force[0], simd.load(&extra.axis(0)[slice])),
+            simd.add(force[1], simd.load(&extra.axis(1)[slice])),
+            simd.add(force[2], simd.load(&extra.axis(2)[slice])),
         ],
         None => force,
     }
@@ -331,12 +348,12 @@ fn integrate_slice<S: Simd>(
     force: [S::V; 3],
     out: SliceOut<'_>,
 ) -> S::V {
-    let force_scale = simd.load(&integrator.force_scale[slice]);
-    let velocity_scale = simd.load(&integrator.velocity_scale[slice]);
+    let force_scale = simd.load(&integrator.scales.axis(0)[slice]);
+    let velocity_scale = simd.load(&integrator.scales.axis(1)[slice]);
     let zero = simd.splat(0.0);
     let mut probe = zero;
     for (axis, (next, delta)) in out.next.into_iter().zip(out.delta).enumerate() {
-        let x = simd.load(&current.axes[axis][slice]);
+        let x = simd.load(&current.axis(axis)[slice]);
         let moved = simd.add(
             simd.add(
                 simd.mul(simd.load(delta), velocity_scale),
@@ -481,7 +498,7 @@ fn spring_forces_with<S: Simd>(
     first_row: usize,
     out: [&mut [Block]; 3],
 ) {
-    let [xs, ys, zs] = &current.axes;
+    let [xs, ys, zs] = current.axes();
     let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
     let [ox, oy, oz] = out;
     for (k, ((fx, fy), fz)) in ox
@@ -492,14 +509,14 @@ fn spring_forces_with<S: Simd>(
     {
         let row = first_row + k;
         let a = [
-            load_row(simd, xs, &springs.a, row, u32::MAX),
-            load_row(simd, ys, &springs.a, row, u32::MAX),
-            load_row(simd, zs, &springs.a, row, u32::MAX),
+            load_row(simd, xs, &springs.a, row, u32::MAX, false),
+            load_row(simd, ys, &springs.a, row, u32::MAX, false),
+            load_row(simd, zs, &springs.a, row, u32::MAX, false),
         ];
         let b = [
-            load_row(simd, xs, &springs.b, row, u32::MAX),
-            load_row(simd, ys, &springs.b, row, u32::MAX),
-            load_row(simd, zs, &springs.b, row, u32::MAX),
+            load_row(simd, xs, &springs.b, row, u32::MAX, false),
+            load_row(simd, ys, &springs.b, row, u32::MAX, false),
+            load_row(simd, zs, &springs.b, row, u32::MAX, false),
         ];
         let stiffness = simd.load(springs.stiffness.row(row));
         let [f0, f1, f2] =
@@ -575,9 +592,9 @@ fn integrate_with<S: Simd>(
     let mut probe = simd.splat(0.0);
     for (slice, out) in slice_outputs(chunk) {
         let force = [
-            simd.load(&forces.axes[0][slice]),
-            simd.load(&forces.axes[1][slice]),
-            simd.load(&forces.axes[2][slice]),
+            simd.load(&forces.axis(0)[slice]),
+            simd.load(&forces.axis(1)[slice]),
+            simd.load(&forces.axis(2)[slice]),
         ];
         let force = add_extra(simd, force, extra, slice);
         probe = simd.add(

@@ -14,6 +14,7 @@
 
 mod external;
 pub mod kernels;
+mod lanes;
 pub mod layout;
 pub mod simd;
 
@@ -28,6 +29,7 @@ use kernels::{
     B_END, Block, ForceChunk, GatherTable, IncidenceTable, IndexRows, InstructionSet, Integrator,
     Soa, SpringTable, Stiffness, VertexChunk,
 };
+use lanes::Lanes;
 use layout::{LANES, Numbering, Slices, VertexOrder};
 
 /// Which of the paper's data structures computes the spring forces.
@@ -134,7 +136,8 @@ enum Topology {
 /// The float32 multithreaded solver.
 pub struct CpuSolver {
     options: CpuOptions,
-    pool: rayon::ThreadPool,
+    /// Shared so a whole batch of steps can run inside one `install` (workers stay awake).
+    pool: std::sync::Arc<rayon::ThreadPool>,
     model: Model,
     numbering: Numbering,
     topology: Topology,
@@ -182,7 +185,7 @@ impl CpuSolver {
             Method::Gather => Topology::Gather(gather_table(model, &numbering)),
             Method::Scatter => {
                 let (springs, incidence) = scatter_tables(model, &numbering);
-                let spring_forces = Soa::zeros(springs.a.rows.len() + 1);
+                let spring_forces = Soa::zeros(springs.a.len() + 1);
                 Topology::Scatter {
                     springs,
                     incidence,
@@ -192,12 +195,11 @@ impl CpuSolver {
         };
         let mut solver = Self {
             options,
-            pool,
+            pool: std::sync::Arc::new(pool),
             numbering,
             topology,
             integrator: Integrator {
-                force_scale: Vec::new(),
-                velocity_scale: Vec::new(),
+                scales: Lanes::default(),
                 gravity_step: [0.0; 3],
             },
             params: params.clone(),
@@ -291,29 +293,30 @@ impl CpuSolver {
         match &mut self.external {
             Some(external) => {
                 let (current, delta, out) = (&self.current, &self.delta, &mut self.extra_forces);
-                self.pool.install(|| external.compute(current, delta, out));
+                external.compute(current, delta, out);
                 true
             }
             None => false,
         }
     }
 
+    /// One fused step; runs its parallel passes in the current rayon pool (callers install ours).
     fn step_fused(&mut self) -> Result<(), SimError> {
         let isa = self.options.instruction_set;
         let has_extra = self.compute_external();
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let all_finite = match &mut self.topology {
-            Topology::Gather(table) => self.pool.install(|| {
+            Topology::Gather(table) => {
                 for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
                     kernels::gather_and_integrate(isa, table, integrator, current, extra, chunk)
                 })
-            }),
+            }
             Topology::Scatter {
                 springs,
                 incidence,
                 spring_forces,
-            } => self.pool.install(|| {
+            } => {
                 compute_spring_forces(isa, springs, current, spring_forces);
                 let spring_forces = &*spring_forces;
                 for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
@@ -327,7 +330,7 @@ impl CpuSolver {
                         chunk,
                     )
                 })
-            }),
+            }
         };
         self.finish_step(all_finite)
     }
@@ -340,12 +343,14 @@ impl CpuSolver {
         }
         let mut times = PhaseTimes::default();
         let start = Instant::now();
-        let has_extra = self.compute_external();
+        let pool = std::sync::Arc::clone(&self.pool);
+        let has_extra = pool.install(|| self.compute_external());
         times.external = start.elapsed();
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let phase_forces = &mut self.phase_forces;
-        let all_finite = self.pool.install(|| {
+        let pool = std::sync::Arc::clone(&self.pool);
+        let all_finite = pool.install(|| {
             let start = Instant::now();
             match &mut self.topology {
                 Topology::Gather(table) => {
@@ -407,8 +412,8 @@ fn for_each_vertex_chunk(
     delta: &mut Soa,
     kernel: impl Fn(VertexChunk<'_>) -> bool + Sync,
 ) -> bool {
-    let [nx, ny, nz] = &mut next.axes;
-    let [dx, dy, dz] = &mut delta.axes;
+    let [nx, ny, nz] = next.axes_mut();
+    let [dx, dy, dz] = delta.axes_mut();
     nx.par_chunks_mut(SLICES_PER_TASK)
         .zip(ny.par_chunks_mut(SLICES_PER_TASK))
         .zip(nz.par_chunks_mut(SLICES_PER_TASK))
@@ -430,7 +435,7 @@ fn for_each_vertex_chunk(
 
 /// Runs a force-only `kernel` over chunks of [`SLICES_PER_TASK`] slices of `out` in parallel.
 fn for_each_force_chunk(out: &mut Soa, kernel: impl Fn(ForceChunk<'_>) + Sync) {
-    let [x, y, z] = &mut out.axes;
+    let [x, y, z] = out.axes_mut();
     x.par_chunks_mut(SLICES_PER_TASK)
         .zip(y.par_chunks_mut(SLICES_PER_TASK))
         .zip(z.par_chunks_mut(SLICES_PER_TASK))
@@ -449,8 +454,8 @@ fn compute_spring_forces(
     current: &Soa,
     spring_forces: &mut Soa,
 ) {
-    let rows = springs.a.rows.len();
-    let [x, y, z] = &mut spring_forces.axes;
+    let rows = springs.a.len();
+    let [x, y, z] = spring_forces.axes_mut();
     x[..rows]
         .par_chunks_mut(SPRING_ROWS_PER_TASK)
         .zip(y[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
@@ -526,10 +531,11 @@ fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
             .enumerate()
             .map(|(rank, (_, o))| (*o, rank))
             .collect();
-        order.sort_by_key(|&s| {
+        let key = |s: u32| {
             let [a, b] = ends[s as usize];
             (class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES), a, b)
-        });
+        };
+        order.sort_by_cached_key(|&s| key(s));
     } else {
         order.sort_by_key(|&s| {
             let [a, b] = ends[s as usize];
@@ -640,8 +646,7 @@ impl Solver for CpuSolver {
             }
         });
         self.integrator = Integrator {
-            force_scale,
-            velocity_scale,
+            scales: Lanes::from_axes([force_scale, velocity_scale]),
             gravity_step: (params.gravity * dt * dt).as_vec3().to_array(),
         };
         self.external = ExternalForces::new(&self.model, &self.numbering, params);
@@ -652,10 +657,13 @@ impl Solver for CpuSolver {
     }
 
     fn step(&mut self, steps: u32) -> Result<(), SimError> {
-        for _ in 0..steps {
-            self.step_fused()?;
-        }
-        Ok(())
+        let pool = std::sync::Arc::clone(&self.pool);
+        pool.install(|| {
+            for _ in 0..steps {
+                self.step_fused()?;
+            }
+            Ok(())
+        })
     }
 
     fn read_state(&self) -> State {
