@@ -5,6 +5,8 @@ mod format;
 mod scene_loading;
 mod solvers;
 
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
 
 /// hooke: interactive mass-spring simulation of deformable surfaces (Georgii & Westermann).
@@ -25,10 +27,21 @@ enum Command {
     Bench(commands::bench::BenchArgs),
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+fn main() -> ExitCode {
+    let result = match Cli::parse().command {
         Command::Run(args) => commands::run::run(&args),
         Command::Info(args) => commands::info::run(&args),
         Command::Bench(args) => commands::bench::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            // The message chain is for users; a backtrace of our own code would only bury it.
+            eprintln!("error: {error}");
+            for cause in error.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::FAILURE
+        }
     }
 }

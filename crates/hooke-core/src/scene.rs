@@ -74,6 +74,33 @@ fn unit_size() -> [f64; 2] {
     [1.0, 1.0]
 }
 
+impl MeshSection {
+    /// A grid of `columns x rows` vertices over the unit square in the x-z plane.
+    pub fn unit_grid(columns: u32, rows: u32) -> Self {
+        Self {
+            generator: MeshGenerator::Grid,
+            resolution: Some([columns, rows]),
+            vertices: None,
+            seed: 0,
+            size: unit_size(),
+            plane: GridPlane::Xz,
+            center: [0.0; 3],
+            path: None,
+        }
+    }
+
+    /// An irregular mesh of about `vertices` vertices over the unit square in the x-z plane.
+    pub fn unit_irregular(vertices: u32, seed: u64) -> Self {
+        Self {
+            generator: MeshGenerator::Irregular,
+            resolution: None,
+            vertices: Some(vertices),
+            seed,
+            ..Self::unit_grid(2, 2)
+        }
+    }
+}
+
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MassSection {
@@ -788,17 +815,7 @@ select = ["corners"]
 
     #[test]
     fn benchmark_scene_round_trips_through_toml() {
-        let mesh = MeshSection {
-            generator: MeshGenerator::Grid,
-            resolution: Some([16, 16]),
-            vertices: None,
-            seed: 0,
-            size: [1.0, 1.0],
-            plane: GridPlane::Xz,
-            center: [0.0; 3],
-            path: None,
-        };
-        let scene = SceneFile::benchmark(mesh, 256);
+        let scene = SceneFile::benchmark(MeshSection::unit_grid(16, 16), 256);
         let parsed = SceneFile::parse(&scene.to_toml(), "bench").expect("parses");
         assert_eq!(parsed, scene);
     }

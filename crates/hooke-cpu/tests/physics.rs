@@ -4,9 +4,8 @@ use std::path::Path;
 
 use glam::DVec3;
 use hooke_core::diagnostics::{energy, pin_reactions};
-use hooke_core::mesh::GridPlane;
 use hooke_core::reference::ReferenceSolver;
-use hooke_core::scene::{MeshGenerator, MeshSection, Scene, SceneFile};
+use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{
     MassModel, Model, ModelOptions, SimError, SimParams, Solver, State, StiffnessModel, Wind,
 };
@@ -33,26 +32,11 @@ fn all_solvers(model: &Model, params: &SimParams) -> Vec<Box<dyn Solver>> {
 }
 
 fn grid_section(columns: u32, rows: u32) -> MeshSection {
-    MeshSection {
-        generator: MeshGenerator::Grid,
-        resolution: Some([columns, rows]),
-        vertices: None,
-        seed: 0,
-        size: [1.0, 1.0],
-        plane: GridPlane::Xz,
-        center: [0.0; 3],
-        path: None,
-    }
+    MeshSection::unit_grid(columns, rows)
 }
 
 fn irregular_section(vertices: u32) -> MeshSection {
-    MeshSection {
-        generator: MeshGenerator::Irregular,
-        resolution: None,
-        vertices: Some(vertices),
-        seed: 11,
-        ..grid_section(2, 2)
-    }
+    MeshSection::unit_irregular(vertices, 11)
 }
 
 /// The comparability workload. Its dt exceeds the (conservative) stability bound on

@@ -18,8 +18,7 @@ use anyhow::Context;
 use clap::Args;
 use comfy_table::Table;
 use hooke_core::Solver;
-use hooke_core::mesh::GridPlane;
-use hooke_core::scene::{MeshGenerator, MeshSection, Scene, SceneFile};
+use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, CpuSolver, Method, PhaseTimes};
 use rayon::prelude::*;
@@ -91,12 +90,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut meshes: Vec<(String, MeshSection, u32)> = args
         .sizes
         .iter()
-        .map(|&n| (format!("grid {n}^2"), grid_section(n), n * n))
+        .map(|&n| (format!("grid {n}^2"), MeshSection::unit_grid(n, n), n * n))
         .collect();
     if args.irregular > 0 {
         meshes.push((
             format!("irregular {}", args.irregular),
-            irregular_section(args.irregular),
+            MeshSection::unit_irregular(args.irregular, IRREGULAR_SEED),
             args.irregular,
         ));
     }
@@ -134,28 +133,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn grid_section(n: u32) -> MeshSection {
-    MeshSection {
-        generator: MeshGenerator::Grid,
-        resolution: Some([n, n]),
-        vertices: None,
-        seed: 0,
-        size: [1.0, 1.0],
-        plane: GridPlane::Xz,
-        center: [0.0; 3],
-        path: None,
-    }
-}
-
-fn irregular_section(vertices: u32) -> MeshSection {
-    MeshSection {
-        generator: MeshGenerator::Irregular,
-        resolution: None,
-        vertices: Some(vertices),
-        seed: 1,
-        ..grid_section(2)
-    }
-}
+/// Seed of the benchmark's irregular mesh (`scenes/bench-irregular.toml` uses the same).
+const IRREGULAR_SEED: u64 = 1;
 
 /// The benchmark scene; its dt may exceed the conservative stability bound on irregular meshes
 /// (valence up to 12), which the table marks rather than refuses, since the workload is fixed.

@@ -107,15 +107,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         let start = Instant::now();
         let result = solver.step(batch as u32);
         solver_time += start.elapsed();
-        result
-            .map_err(anyhow::Error::from)
-            .with_context(|| stopped_message(&output, frames_written))?;
+        result.map_err(|error| stopped(error, &output, frames_written))?;
         step += batch;
         progress.set_position(step);
         let state = solver.read_state();
         check_health(&scene.model, &state.positions, solver.steps_taken())
-            .map_err(anyhow::Error::from)
-            .with_context(|| stopped_message(&output, frames_written))?;
+            .map_err(|error| stopped(error, &output, frames_written))?;
         if step.is_multiple_of(frame_every) || step == steps {
             write_frame(&state, step, &mut frames_written)?;
         }
@@ -148,9 +145,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn stopped_message(output: &Path, frames: usize) -> String {
-    format!(
-        "simulation stopped; the {frames} frames written before are in {}",
+fn stopped(error: hooke_core::SimError, output: &Path, frames: usize) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{error}\nthe simulation stopped; frames written before: {frames}, in {}",
         output.display()
     )
 }

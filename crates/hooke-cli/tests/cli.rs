@@ -1,0 +1,247 @@
+//! The `hooke` command end to end: what a user types, what comes out, and every bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use hooke_core::mesh::load_mesh;
+
+fn hooke(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hooke"))
+        .args(args)
+        .output()
+        .expect("hooke runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn write(dir: &Path, name: &str, contents: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, contents).expect("write file");
+    path
+}
+
+const SMALL_CLOTH: &str = r#"
+[mesh]
+generator = "grid"
+resolution = [12, 12]
+center = [0.0, 1.0, 0.0]
+
+[material]
+mass = { total = 0.1 }
+stiffness = 100.0
+damping = 0.001
+
+[pins]
+select = ["corners"]
+
+[simulation]
+steps = 200
+frame_every = 100
+"#;
+
+fn path_str(path: &Path) -> &str {
+    path.to_str().expect("utf-8 path")
+}
+
+#[test]
+fn run_writes_frames_final_state_and_summary() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let out = dir.path().join("out");
+    for backend in ["reference", "cpu"] {
+        let result = hooke(&[
+            "run",
+            path_str(&scene),
+            "--backend",
+            backend,
+            "--output",
+            path_str(&out),
+        ]);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        let stdout = text(&result.stdout);
+        assert!(
+            stdout.contains("steps/s") && stdout.contains("max strain"),
+            "{stdout}"
+        );
+    }
+    for frame in [
+        "frame-0000000.ply",
+        "frame-0000100.ply",
+        "frame-0000200.ply",
+        "final-state.ply",
+    ] {
+        let (mesh, _) = load_mesh(&out.join(frame)).expect(frame);
+        assert_eq!(mesh.vertex_count(), 144);
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).expect("summary"))
+            .expect("json");
+    assert_eq!(summary["steps"], 200);
+    assert!(summary["energy_total"].is_f64());
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .expect("list")
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+}
+
+#[test]
+fn final_state_is_identical_for_one_and_two_threads_and_both_methods() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let mut states = Vec::new();
+    for (method, threads) in [("scatter", "1"), ("scatter", "2"), ("gather", "2")] {
+        let out = dir.path().join(format!("{method}-{threads}"));
+        let result = hooke(&[
+            "run",
+            path_str(&scene),
+            "--method",
+            method,
+            "--threads",
+            threads,
+            "--no-frames",
+            "--output",
+            path_str(&out),
+        ]);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        states.push(std::fs::read(out.join("final-state.ply")).expect("final state"));
+    }
+    assert!(states.windows(2).all(|w| w[0] == w[1]));
+}
+
+#[test]
+fn unknown_scene_key_is_named_with_its_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(
+        dir.path(),
+        "typo.toml",
+        &SMALL_CLOTH.replace("damping =", "dampin ="),
+    );
+    let result = hooke(&["run", path_str(&scene)]);
+    assert!(!result.status.success());
+    let stderr = text(&result.stderr);
+    assert!(
+        stderr.contains("typo.toml") && stderr.contains("line 10") && stderr.contains("dampin"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn missing_scene_file_is_named() {
+    let result = hooke(&["info", "no/such/scene.toml"]);
+    assert!(!result.status.success());
+    let stderr = text(&result.stderr);
+    assert!(stderr.contains("no/such/scene.toml"), "{stderr}");
+}
+
+#[test]
+fn bad_mesh_file_is_named_with_its_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        "bad.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\nf 1 2 5\n",
+    );
+    let scene = SMALL_CLOTH.replace(
+        "generator = \"grid\"\nresolution = [12, 12]",
+        "generator = \"file\"\npath = \"bad.obj\"",
+    );
+    let scene = write(dir.path(), "from-file.toml", &scene);
+    let result = hooke(&["run", path_str(&scene)]);
+    assert!(!result.status.success());
+    let stderr = text(&result.stderr);
+    assert!(stderr.contains("bad.obj line 5"), "{stderr}");
+}
+
+#[test]
+fn dt_above_the_bound_is_refused_and_when_forced_the_blow_up_names_step_and_vertex() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(
+        dir.path(),
+        "fast.toml",
+        &format!(
+            "{}dt = 0.05\n",
+            SMALL_CLOTH.replace("steps = 200", "steps = 5000")
+        ),
+    );
+    let refused = hooke(&["run", path_str(&scene)]);
+    assert!(!refused.status.success());
+    assert!(
+        text(&refused.stderr).contains("exceeds the stability limit"),
+        "{}",
+        text(&refused.stderr)
+    );
+
+    let out = dir.path().join("out");
+    let forced = hooke(&[
+        "run",
+        path_str(&scene),
+        "--allow-unstable",
+        "--output",
+        path_str(&out),
+    ]);
+    assert!(!forced.status.success());
+    let stderr = text(&forced.stderr);
+    assert!(
+        stderr.contains("step ") && stderr.contains("vertex "),
+        "{stderr}"
+    );
+    assert!(stderr.contains("frames written before: 1"), "{stderr}");
+    assert!(
+        out.join("frame-0000000.ply").exists(),
+        "the first frame survives"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn info_reports_valences_stability_and_memory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let table = hooke(&["info", path_str(&scene)]);
+    assert!(table.status.success(), "{}", text(&table.stderr));
+    let stdout = text(&table.stdout);
+    assert!(
+        stdout.contains("valence") && stdout.contains("stable dt") && stdout.contains("scatter"),
+        "{stdout}"
+    );
+
+    let json = hooke(&["info", path_str(&scene), "--format", "json"]);
+    let info: serde_json::Value = serde_json::from_slice(&json.stdout).expect("json");
+    assert_eq!(info["vertices"], 144);
+    assert_eq!(info["valence_histogram"][6], 10 * 10);
+    assert_eq!(info["memory"].as_array().map(Vec::len), Some(2));
+}
+
+#[test]
+fn bench_prints_a_row_per_mesh_and_method() {
+    let result = hooke(&[
+        "bench",
+        "--sizes",
+        "16,24",
+        "--irregular",
+        "300",
+        "--steps",
+        "20",
+        "--warmup",
+        "2",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let rows = report["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 6);
+    for row in rows {
+        assert!(row["total_ms"].as_f64().is_some_and(|t| t > 0.0), "{row}");
+        assert!(
+            row["bandwidth_floor_ms"].as_f64().is_some_and(|t| t > 0.0),
+            "{row}"
+        );
+    }
+    assert!(rows.iter().any(|r| r["force_accumulation_ms"].is_null()));
+}
