@@ -62,7 +62,8 @@ pub fn grid(columns: u32, rows: u32, size: [f64; 2], plane: GridPlane, center: D
     }
 }
 
-/// An irregular triangulation of a `size` rectangle with about `vertex_count` vertices.
+/// An irregular triangulation of a `size` rectangle with about `vertex_count` vertices,
+/// numbered row by row.
 ///
 /// Interior points are uniformly random (seeded, so the mesh is reproducible) but kept at least
 /// a quarter of the mean spacing apart, which avoids slivers while leaving the Delaunay valences
@@ -113,6 +114,12 @@ pub fn irregular(
         }
     }
 
+    // Number vertices in rows of one spacing's height, as meshing tools emit them: neighbours
+    // then sit close in memory (random insertion order made the gather 3x slower).
+    points.sort_by(|p, q| {
+        let row = |v: &DVec2| ((v.y + half.y) / spacing).floor() as i64;
+        row(p).cmp(&row(q)).then(p.x.total_cmp(&q.x))
+    });
     let delaunay_points: Vec<delaunator::Point> = points
         .iter()
         .map(|p| delaunator::Point { x: p.x, y: p.y })
