@@ -105,3 +105,44 @@ pub fn spring_force_on_a(a: DVec3, b: DVec3, rest_length: f64, stiffness: f64) -
     let length = l.length();
     -stiffness * (length - rest_length) / length * l
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{MassModel, ModelOptions, StiffnessModel};
+
+    #[test]
+    fn over_stretched_spring_is_an_explosion_and_nan_is_non_finite() {
+        let options = ModelOptions {
+            stiffness: StiffnessModel::Uniform(1.0),
+            mass: MassModel::PerVertex(1.0),
+            rest_length_scale: 1.0,
+            pinned: vec![],
+        };
+        let model = Model::from_springs(
+            vec![DVec3::ZERO, DVec3::X],
+            vec![[0, 1]],
+            vec![1.0, 1.0],
+            &options,
+        )
+        .expect("model");
+        assert_eq!(
+            check_health(&model, &[DVec3::ZERO, DVec3::X * 50.0], 3),
+            Ok(())
+        );
+        let error = check_health(&model, &[DVec3::ZERO, DVec3::X * 500.0], 7).unwrap_err();
+        assert!(
+            matches!(
+                error,
+                SimError::Exploded {
+                    step: 7,
+                    spring: 0,
+                    ..
+                }
+            ),
+            "{error}"
+        );
+        let error = check_health(&model, &[DVec3::ZERO, DVec3::NAN], 9).unwrap_err();
+        assert_eq!(error, SimError::NonFinite { step: 9, vertex: 1 });
+    }
+}

@@ -814,6 +814,26 @@ select = ["corners"]
     }
 
     #[test]
+    fn pins_combine_indices_selectors_and_boxes() {
+        let text = CLOTH.replace(
+            "select = [\"corners\"]",
+            "select = [\"corners\"]\nvertices = [9]\nboxes = [{ min = [-0.6, -1, -0.6], max = [0.6, 1, -0.4] }]",
+        );
+        let scene = build(&text).expect("builds");
+        let pinned: Vec<usize> = (0..64).filter(|&i| scene.model.pinned[i]).collect();
+        // Corners 0, 7, 56, 63; vertex 9; the whole first row (z = -0.5) from the box.
+        assert_eq!(pinned, vec![0, 1, 2, 3, 4, 5, 6, 7, 9, 56, 63]);
+        let empty = CLOTH.replace(
+            "select = [\"corners\"]",
+            "boxes = [{ min = [5, 5, 5], max = [6, 6, 6] }]",
+        );
+        assert_eq!(
+            build(&empty).unwrap_err().to_string(),
+            "test.toml: pins.boxes[0]: contains no vertex"
+        );
+    }
+
+    #[test]
     fn benchmark_scene_round_trips_through_toml() {
         let scene = SceneFile::benchmark(MeshSection::unit_grid(16, 16), 256);
         let parsed = SceneFile::parse(&scene.to_toml(), "bench").expect("parses");

@@ -294,7 +294,10 @@ fn cpu_methods_match_reference_after_100_benchmark_steps() {
             let mut solver = cpu(&scene.model, &scene.params, method, 2);
             solver.step(100).expect("stable");
             let error = relative_l2(&solver.read_state().positions, &expected);
-            eprintln!("{vertices} vertices, {}: relative L2 error {error:.2e}", solver.describe());
+            eprintln!(
+                "{vertices} vertices, {}: relative L2 error {error:.2e}",
+                solver.describe()
+            );
             assert!(
                 error < AGREEMENT_AFTER_100_STEPS,
                 "{}: {error:e}",
