@@ -19,6 +19,10 @@ pub enum SimError {
         b: u32,
         stretch: f64,
     },
+    #[error("step {step}: {detail}")]
+    Overflow { step: u64, detail: String },
+    #[error("the solver's device failed: {0}")]
+    Device(String),
 }
 
 /// Advances a mass-spring system. A solver owns its state, wherever that lives (CPU or GPU

@@ -1,0 +1,189 @@
+//! The GPU device: adapter choice, optional features, and device errors as values.
+
+use std::sync::{Arc, Mutex};
+
+/// Optional features hooke uses when the adapter has them.
+pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::SHADER_FLOAT32_ATOMIC
+    .union(wgpu::Features::TIMESTAMP_QUERY)
+    .union(wgpu::Features::FLOAT32_BLENDABLE);
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found ({0}); on Debian, `apt-get install mesa-vulkan-drivers` provides a software one"
+    )]
+    NoAdapter(String),
+    #[error("the GPU device could not be created: {0}")]
+    Device(String),
+    #[error("{what} needs {feature}, which {adapter} does not have")]
+    Unsupported {
+        what: String,
+        feature: &'static str,
+        adapter: String,
+    },
+    #[error("{what}: the mesh needs {needed} bytes in one buffer; {adapter} allows {limit}")]
+    TooLarge {
+        what: &'static str,
+        needed: u64,
+        limit: u64,
+        adapter: String,
+    },
+    #[error("GPU error: {0}")]
+    Validation(String),
+    #[error("reading back from the GPU failed: {0}")]
+    ReadBack(String),
+}
+
+/// One adapter as `hooke info --gpu` lists it.
+#[derive(Clone, Debug)]
+pub struct AdapterSummary {
+    pub info: wgpu::AdapterInfo,
+    pub features: wgpu::Features,
+}
+
+/// An adapter, its device and queue, and the optional features that were granted.
+#[derive(Debug)]
+pub struct GpuContext {
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    /// The optional features (of [`OPTIONAL_FEATURES`]) this device has.
+    pub features: wgpu::Features,
+    errors: Arc<Mutex<Vec<String>>>,
+}
+
+fn instance() -> wgpu::Instance {
+    // Honours WGPU_BACKEND and the other WGPU_* instance variables.
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+/// Every adapter the instance sees, with its features.
+pub fn list_adapters() -> Vec<AdapterSummary> {
+    let instance = instance();
+    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        .into_iter()
+        .map(|a| AdapterSummary {
+            info: a.get_info(),
+            features: a.features(),
+        })
+        .collect()
+}
+
+impl GpuContext {
+    /// Opens the adapter named by `WGPU_ADAPTER_NAME` (and `WGPU_BACKEND`), else the default one.
+    pub fn new() -> Result<Arc<Self>, GpuError> {
+        let instance = instance();
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, None,
+        ))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        let features = adapter.features() & OPTIONAL_FEATURES;
+        let available = adapter.limits();
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: available.max_storage_buffer_binding_size,
+            max_buffer_size: available.max_buffer_size,
+            max_compute_workgroups_per_dimension: available.max_compute_workgroups_per_dimension,
+            ..wgpu::Limits::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("hooke"),
+            required_features: features,
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device(e.to_string()))?;
+        // wgpu's default handler panics; keep errors as values and report them on the next call.
+        let errors = Arc::new(Mutex::new(Vec::new()));
+        let sink = Arc::clone(&errors);
+        device.on_uncaptured_error(Arc::new(move |error: wgpu::Error| {
+            if let Ok(mut errors) = sink.lock() {
+                errors.push(error.to_string());
+            }
+        }));
+        let lost = Arc::clone(&errors);
+        device.set_device_lost_callback(move |reason, message| {
+            if let Ok(mut errors) = lost.lock() {
+                errors.push(format!("device lost ({reason:?}): {message}"));
+            }
+        });
+        Ok(Arc::new(Self {
+            adapter,
+            device,
+            queue,
+            info,
+            features,
+            errors,
+        }))
+    }
+
+    /// `"llvmpipe (LLVM 15.0.6, 256 bits), Vulkan, Cpu"`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{}, {:?}, {:?}",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+
+    pub fn has(&self, feature: wgpu::Features) -> bool {
+        self.features.contains(feature)
+    }
+
+    /// One line per optional feature: granted, or what hooke does without it.
+    pub fn feature_report(&self) -> Vec<String> {
+        [
+            (
+                wgpu::Features::SHADER_FLOAT32_ATOMIC,
+                "SHADER_FLOAT32_ATOMIC",
+                "scatter atomic-f32 unavailable; use atomic-fixed or incidence",
+            ),
+            (
+                wgpu::Features::TIMESTAMP_QUERY,
+                "TIMESTAMP_QUERY",
+                "per-phase times fall back to wall clock with a wait per phase",
+            ),
+            (
+                wgpu::Features::FLOAT32_BLENDABLE,
+                "FLOAT32_BLENDABLE",
+                "scatter blend-r32f unavailable; blend-r16f and blend-rgba8 remain",
+            ),
+        ]
+        .into_iter()
+        .map(|(feature, name, fallback)| {
+            if self.has(feature) {
+                format!("{name}: yes")
+            } else {
+                format!("{name}: no ({fallback})")
+            }
+        })
+        .collect()
+    }
+
+    /// Records an error to be returned by the next [`GpuContext::take_error`].
+    pub(crate) fn report(&self, message: String) {
+        if let Ok(mut errors) = self.errors.lock() {
+            errors.push(message);
+        }
+    }
+
+    /// Device errors since the last call, as one error.
+    pub fn take_error(&self) -> Result<(), GpuError> {
+        let mut errors = self
+            .errors
+            .lock()
+            .map_err(|e| GpuError::Validation(e.to_string()))?;
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            let joined = errors.join("; ");
+            errors.clear();
+            Err(GpuError::Validation(joined))
+        }
+    }
+}
+
+/// Whether tests must fail rather than skip without an adapter (`HOOKE_REQUIRE_GPU=1`, set by CI).
+pub fn gpu_required() -> bool {
+    std::env::var("HOOKE_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}

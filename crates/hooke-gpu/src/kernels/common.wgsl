@@ -1,0 +1,68 @@
+// Shared by every hooke kernel (prepended to each file when it is compiled).
+
+// Mirrors `StepUniforms` in layout.rs.
+struct StepUniforms {
+    // g dt^2 (m), xyz.
+    gravity_step: vec4<f32>,
+    vertex_count: u32,
+    spring_count: u32,
+    // 1 when the extra-force buffer (point forces, drags, wind) holds this step's forces.
+    has_extra: u32,
+    // Fixed-point accumulation: integer units per newton.
+    fixed_scale: f32,
+    // Blend accumulation: texels per row of the force render target, and its row count.
+    blend_width: u32,
+    blend_height: u32,
+    // Blend accumulation: newtons per stored unit.
+    blend_scale: f32,
+    inverse_dt: f32,
+    triangle_count: u32,
+    // Fixed-point accumulation: largest allowed |contribution| in integer units.
+    fixed_limit: f32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Mirrors `GpuStatus` in layout.rs: written by the kernels, read back by the solver.
+struct Status {
+    // First step (1-based) that produced a non-finite position; 0xffffffff if none.
+    first_bad_step: atomic<u32>,
+    // Lowest vertex that was non-finite at that step.
+    first_bad_vertex: atomic<u32>,
+    // Non-zero once a fixed-point contribution was clamped.
+    fixed_overflow: atomic<u32>,
+    // Steps completed since the solver started (advanced by the tick kernel).
+    step_counter: u32,
+}
+
+// Mirrors `GpuSpring` in layout.rs.
+struct Spring {
+    a: u32,
+    b: u32,
+    rest_length: f32,
+    stiffness: f32,
+}
+
+const WORKGROUP_SIZE: u32 = 64u;
+// Incidence entries: spring index plus this bit when the vertex is the spring's far end.
+const B_END: u32 = 0x80000000u;
+
+// Flattened invocation index of a 1D problem dispatched as a 2D grid of workgroups
+// (a single dimension is limited to 65535 workgroups).
+fn flat_index(id: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return id.x + id.y * groups.x * WORKGROUP_SIZE;
+}
+
+// Force of a spring on its near end (paper eq. 1, sign of eq. 4): D (1 - l0 / |d|) d.
+fn spring_force(near: vec3<f32>, far: vec3<f32>, stiffness: f32, rest_length: f32) -> vec3<f32> {
+    let d = far - near;
+    // Clamped so coincident ends give zero force rather than 0/0.
+    let length = sqrt(max(dot(d, d), 1.17549435e-38));
+    return stiffness * (1.0 - rest_length / length) * d;
+}
+
+fn is_finite3(v: vec3<f32>) -> bool {
+    // WGSL has no isnan/isinf: an all-ones exponent means inf or NaN.
+    let exponent = bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u);
+    return all(exponent != vec3<u32>(0x7f800000u));
+}

@@ -1,0 +1,58 @@
+//! The WGSL kernels. Each source is `common.wgsl` followed by the kernel's own file.
+
+/// A kernel's full source with the shared prelude.
+macro_rules! kernel_source {
+    ($file:literal) => {
+        concat!(include_str!("common.wgsl"), "\n", include_str!($file))
+    };
+}
+
+pub const FORCE_GATHER: &str = kernel_source!("force_gather.wgsl");
+pub const FORCE_SPRINGS: &str = kernel_source!("force_springs.wgsl");
+pub const ACCUMULATE_ATOMIC_F32: &str = kernel_source!("accumulate_atomic_f32.wgsl");
+pub const ACCUMULATE_FIXED: &str = kernel_source!("accumulate_fixed.wgsl");
+pub const RESOLVE_FIXED: &str = kernel_source!("resolve_fixed.wgsl");
+pub const ACCUMULATE_INCIDENCE: &str = kernel_source!("accumulate_incidence.wgsl");
+pub const ACCUMULATE_BLEND: &str = kernel_source!("accumulate_blend.wgsl");
+pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
+pub const INTEGRATE: &str = kernel_source!("integrate.wgsl");
+pub const EXTERNAL: &str = kernel_source!("external.wgsl");
+pub const TICK: &str = kernel_source!("tick.wgsl");
+
+/// Every kernel by name, for validation.
+#[cfg(test)]
+pub const ALL: &[(&str, &str)] = &[
+    ("force_gather", FORCE_GATHER),
+    ("force_springs", FORCE_SPRINGS),
+    ("accumulate_atomic_f32", ACCUMULATE_ATOMIC_F32),
+    ("accumulate_fixed", ACCUMULATE_FIXED),
+    ("resolve_fixed", RESOLVE_FIXED),
+    ("accumulate_incidence", ACCUMULATE_INCIDENCE),
+    ("accumulate_blend", ACCUMULATE_BLEND),
+    ("resolve_blend", RESOLVE_BLEND),
+    ("integrate", INTEGRATE),
+    ("external", EXTERNAL),
+    ("tick", TICK),
+];
+
+#[cfg(test)]
+mod tests {
+    use naga::valid::{Capabilities, ValidationFlags, Validator};
+
+    #[test]
+    fn every_wgsl_kernel_parses_and_validates() {
+        for (name, source) in super::ALL {
+            let module = naga::front::wgsl::parse_str(source)
+                .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+            // Only the float-atomic kernel needs a capability beyond WebGPU's baseline.
+            let capabilities = if *name == "accumulate_atomic_f32" {
+                Capabilities::SHADER_FLOAT32_ATOMIC
+            } else {
+                Capabilities::empty()
+            };
+            Validator::new(ValidationFlags::all(), capabilities)
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+        }
+    }
+}

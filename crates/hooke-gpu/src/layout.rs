@@ -1,0 +1,126 @@
+//! Host mirrors of the WGSL structs in `kernels/common.wgsl` (checked against naga's layout).
+
+use bytemuck::{Pod, Zeroable};
+
+/// Per-step constants of every kernel (`StepUniforms` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct StepUniforms {
+    /// `g dt^2` (m) in xyz.
+    pub gravity_step: [f32; 4],
+    pub vertex_count: u32,
+    pub spring_count: u32,
+    /// 1 when the extra-force buffer holds this step's point forces, drags and wind.
+    pub has_extra: u32,
+    /// Fixed-point accumulation: integer units per newton.
+    pub fixed_scale: f32,
+    /// Blend accumulation: texels per row and rows of the force render target.
+    pub blend_width: u32,
+    pub blend_height: u32,
+    /// Blend accumulation: newtons per stored unit.
+    pub blend_scale: f32,
+    pub inverse_dt: f32,
+    /// Triangles the wind acts on (0 without wind).
+    pub triangle_count: u32,
+    /// Fixed-point accumulation: largest allowed |contribution| in integer units.
+    pub fixed_limit: f32,
+    pub _pad: [u32; 2],
+}
+
+/// A spring (`Spring` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSpring {
+    pub a: u32,
+    pub b: u32,
+    pub rest_length: f32,
+    pub stiffness: f32,
+}
+
+/// One entry of the gather adjacency (`GatherEntry` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GatherEntry {
+    pub neighbor: u32,
+    pub rest_length: f32,
+    pub stiffness: f32,
+}
+
+/// What the kernels report back (`Status` in WGSL).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuStatus {
+    /// First step (1-based, counted from the solver's start) with a non-finite position.
+    pub first_bad_step: u32,
+    /// Lowest vertex that was non-finite at that step.
+    pub first_bad_vertex: u32,
+    /// Non-zero once a fixed-point contribution was clamped.
+    pub fixed_overflow: u32,
+    /// Steps completed since the solver started.
+    pub step_counter: u32,
+}
+
+impl GpuStatus {
+    pub const NO_FAILURE: u32 = u32::MAX;
+
+    pub fn fresh(step_counter: u32) -> Self {
+        Self {
+            first_bad_step: Self::NO_FAILURE,
+            first_bad_vertex: Self::NO_FAILURE,
+            fixed_overflow: 0,
+            step_counter,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (size, member offsets) of a struct as naga lays it out for WGSL.
+    fn wgsl_layout(name: &str) -> (u32, Vec<u32>) {
+        let source = crate::kernels::FORCE_GATHER;
+        let module = naga::front::wgsl::parse_str(source).expect("parses");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let (handle, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("struct {name} in WGSL"));
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("{name} is a struct");
+        };
+        assert_eq!(layouter[handle].size, *span);
+        (*span, members.iter().map(|m| m.offset).collect())
+    }
+
+    #[test]
+    fn host_mirrors_match_wgsl_sizes_and_offsets() {
+        use std::mem::{offset_of, size_of};
+        let (size, offsets) = wgsl_layout("StepUniforms");
+        assert_eq!(size as usize, size_of::<StepUniforms>());
+        let host = [
+            offset_of!(StepUniforms, gravity_step),
+            offset_of!(StepUniforms, vertex_count),
+            offset_of!(StepUniforms, spring_count),
+            offset_of!(StepUniforms, has_extra),
+            offset_of!(StepUniforms, fixed_scale),
+            offset_of!(StepUniforms, blend_width),
+            offset_of!(StepUniforms, blend_height),
+            offset_of!(StepUniforms, blend_scale),
+            offset_of!(StepUniforms, inverse_dt),
+            offset_of!(StepUniforms, triangle_count),
+            offset_of!(StepUniforms, fixed_limit),
+        ];
+        assert_eq!(&offsets[..host.len()], host.map(|o| o as u32).as_slice());
+
+        let (size, offsets) = wgsl_layout("Spring");
+        assert_eq!(size as usize, size_of::<GpuSpring>());
+        assert_eq!(offsets, [0, 4, 8, 12]);
+        let (size, _) = wgsl_layout("GatherEntry");
+        assert_eq!(size as usize, size_of::<GatherEntry>());
+        let (size, _) = wgsl_layout("Status");
+        assert_eq!(size as usize, size_of::<GpuStatus>());
+    }
+}

@@ -1,0 +1,13 @@
+//! hooke-gpu: the mass-spring step on the GPU with wgpu and WGSL (paper Section 4). The state
+//! stays in GPU memory; reading it back is an explicit call.
+
+mod context;
+mod gpu;
+mod kernels;
+pub mod layout;
+mod solver;
+
+pub use context::{
+    AdapterSummary, GpuContext, GpuError, OPTIONAL_FEATURES, gpu_required, list_adapters,
+};
+pub use solver::{Accumulation, GpuMemory, GpuMethod, GpuPhaseTimes, GpuSolver, TimingSource};
