@@ -25,6 +25,8 @@ enum Command {
     Info(commands::info::InfoArgs),
     /// Time gather and scatter on the benchmark workload (the paper's Table 2).
     Bench(commands::bench::BenchArgs),
+    /// Compare every method and accumulation precision with the float64 reference.
+    Accuracy(commands::accuracy::AccuracyArgs),
 }
 
 fn main() -> ExitCode {
@@ -32,6 +34,7 @@ fn main() -> ExitCode {
         Command::Run(args) => commands::run::run(&args),
         Command::Info(args) => commands::info::run(&args),
         Command::Bench(args) => commands::bench::run(&args),
+        Command::Accuracy(args) => commands::accuracy::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

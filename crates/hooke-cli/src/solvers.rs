@@ -6,6 +6,7 @@ use hooke_core::reference::ReferenceSolver;
 use hooke_core::{Model, SimParams, Solver};
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod, GpuSolver};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Backend {
@@ -13,6 +14,8 @@ pub enum Backend {
     Reference,
     /// float32, multithreaded, SIMD.
     Cpu,
+    /// float32 on the GPU (wgpu; set WGPU_BACKEND / WGPU_ADAPTER_NAME to choose the adapter).
+    Gpu,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -28,6 +31,36 @@ impl From<MethodArg> for Method {
         match m {
             MethodArg::Gather => Method::Gather,
             MethodArg::Scatter => Method::Scatter,
+        }
+    }
+}
+
+/// How the GPU's scatter method sums spring forces at the vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum AccumulationArg {
+    /// Float atomics (needs SHADER_FLOAT32_ATOMIC).
+    AtomicF32,
+    /// Fixed-point integer atomics (deterministic; overflow is reported).
+    AtomicFixed,
+    /// Each vertex gathers its springs' forces (deterministic, no atomics).
+    Incidence,
+    /// The paper's point primitives blended into a 32-bit float target (needs FLOAT32_BLENDABLE).
+    BlendR32f,
+    /// ... into a 16-bit float target.
+    BlendR16f,
+    /// ... into 8-bit fixed-point targets, as the paper had to.
+    BlendRgba8,
+}
+
+impl From<AccumulationArg> for Accumulation {
+    fn from(a: AccumulationArg) -> Self {
+        match a {
+            AccumulationArg::AtomicF32 => Accumulation::AtomicF32,
+            AccumulationArg::AtomicFixed => Accumulation::AtomicFixed,
+            AccumulationArg::Incidence => Accumulation::Incidence,
+            AccumulationArg::BlendR32f => Accumulation::BlendR32f,
+            AccumulationArg::BlendR16f => Accumulation::BlendR16f,
+            AccumulationArg::BlendRgba8 => Accumulation::BlendRgba8,
         }
     }
 }
@@ -55,9 +88,12 @@ pub struct SolverArgs {
     /// Which solver runs the simulation.
     #[arg(long, value_enum, default_value_t = Backend::Cpu)]
     pub backend: Backend,
-    /// Data structure of the cpu backend (gather is the faster one on CPUs we measured).
-    #[arg(long, value_enum, default_value_t = MethodArg::Gather)]
-    pub method: MethodArg,
+    /// Data structure (default: gather on the cpu, where it is faster; scatter on the gpu).
+    #[arg(long, value_enum)]
+    pub method: Option<MethodArg>,
+    /// How gpu scatter accumulates forces.
+    #[arg(long, value_enum, default_value_t = AccumulationArg::Incidence)]
+    pub accumulation: AccumulationArg,
     /// Worker threads of the cpu backend (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -72,13 +108,38 @@ impl SolverArgs {
             Backend::Reference => Box::new(ReferenceSolver::new(model, params)),
             Backend::Cpu => {
                 let options = CpuOptions {
-                    method: self.method.into(),
+                    method: self.method.unwrap_or(MethodArg::Gather).into(),
                     threads: self.threads,
                     order: self.order.into(),
                     ..Default::default()
                 };
                 Box::new(CpuSolver::new(model, params, options).context("starting the cpu solver")?)
             }
+            Backend::Gpu => {
+                let context = open_gpu()?;
+                let method = match self.method.unwrap_or(MethodArg::Scatter) {
+                    MethodArg::Gather => GpuMethod::Gather,
+                    MethodArg::Scatter => GpuMethod::Scatter(self.accumulation.into()),
+                };
+                Box::new(
+                    GpuSolver::new(context, model, params, method)
+                        .context("starting the gpu solver")?,
+                )
+            }
         })
     }
+}
+
+/// Opens the GPU and says which adapter it is and which optional paths it lacks.
+pub fn open_gpu() -> anyhow::Result<std::sync::Arc<GpuContext>> {
+    let context = GpuContext::new().context("opening the GPU")?;
+    eprintln!("gpu: {}", context.describe());
+    for line in context
+        .feature_report()
+        .iter()
+        .filter(|l| l.contains(": no"))
+    {
+        eprintln!("gpu: {line}");
+    }
+    Ok(context)
 }

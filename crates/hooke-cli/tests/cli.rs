@@ -245,3 +245,156 @@ fn bench_prints_a_row_per_mesh_and_method() {
     }
     assert!(rows.iter().any(|r| r["force_accumulation_ms"].is_null()));
 }
+
+/// Whether a GPU adapter exists; without one GPU tests skip, unless HOOKE_REQUIRE_GPU=1.
+fn gpu_available() -> bool {
+    match hooke_gpu::GpuContext::new() {
+        Ok(_) => true,
+        Err(error) if hooke_gpu::gpu_required() => {
+            panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}")
+        }
+        Err(_) => false,
+    }
+}
+
+#[test]
+fn gpu_run_matches_cpu_run_closely() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let mut finals = Vec::new();
+    for (backend, extra) in [
+        ("cpu", vec![]),
+        ("gpu", vec!["--accumulation", "atomic-fixed"]),
+    ] {
+        let out = dir.path().join(backend);
+        let mut args = vec![
+            "run",
+            path_str(&scene),
+            "--backend",
+            backend,
+            "--output",
+            path_str(&out),
+        ];
+        args.extend(extra);
+        let result = hooke(&args);
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        if backend == "gpu" {
+            assert!(text(&result.stderr).contains("gpu: "), "names the adapter");
+        }
+        let (mesh, _) = load_mesh(&out.join("frame-0000200.ply")).expect("frame");
+        finals.push(mesh.positions);
+    }
+    let error: f64 = finals[0]
+        .iter()
+        .zip(&finals[1])
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f64::max);
+    // Both are float32 solvers of the same equations; 200 steps apart by rounding only.
+    assert!(error < 1e-5, "max vertex difference {error}");
+}
+
+#[test]
+fn gpu_info_lists_adapters_and_buffers() {
+    if !gpu_available() {
+        return;
+    }
+    let adapters = hooke(&["info", "--gpu", "--format", "json"]);
+    assert!(adapters.status.success(), "{}", text(&adapters.stderr));
+    let list: serde_json::Value = serde_json::from_slice(&adapters.stdout).expect("json");
+    assert!(!list.as_array().expect("array").is_empty());
+
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let info = hooke(&["info", path_str(&scene), "--format", "json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("json");
+    let methods: Vec<&str> = info["gpu_memory"]
+        .as_array()
+        .expect("gpu memory")
+        .iter()
+        .filter_map(|m| m["method"].as_str())
+        .collect();
+    assert!(
+        methods.contains(&"gather") && methods.contains(&"scatter/incidence"),
+        "{methods:?}"
+    );
+}
+
+#[test]
+fn accuracy_shows_the_precision_ladder() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let result = hooke(&[
+        "accuracy",
+        path_str(&scene),
+        "--steps",
+        "200",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let error_of = |name: &str| {
+        report["rows"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .find(|r| r["solver"] == name)
+            .and_then(|r| r["relative_l2_error"].as_f64())
+            .unwrap_or_else(|| panic!("{name} in {report}"))
+    };
+    let (f32_error, f16_error, u8_error) = (
+        error_of("gpu scatter/incidence"),
+        error_of("gpu scatter/blend-r16f"),
+        error_of("gpu scatter/blend-rgba8"),
+    );
+    assert!(f32_error < 1e-5, "{f32_error}");
+    assert!(
+        f32_error < f16_error && f16_error < u8_error,
+        "{f32_error} {f16_error} {u8_error}"
+    );
+}
+
+#[test]
+fn gpu_bench_prints_every_accumulation() {
+    if !gpu_available() {
+        return;
+    }
+    let result = hooke(&[
+        "bench",
+        "--backend",
+        "gpu",
+        "--sizes",
+        "16",
+        "--irregular",
+        "0",
+        "--steps",
+        "10",
+        "--warmup",
+        "2",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let methods: Vec<&str> = report["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .filter_map(|r| r["method"].as_str())
+        .collect();
+    for expected in [
+        "gather",
+        "scatter/atomic-fixed",
+        "scatter/incidence",
+        "scatter/blend-r16f",
+        "scatter/blend-rgba8",
+    ] {
+        assert!(methods.contains(&expected), "{expected} in {methods:?}");
+    }
+}

@@ -11,3 +11,6 @@ pub use context::{
     AdapterSummary, GpuContext, GpuError, OPTIONAL_FEATURES, gpu_required, list_adapters,
 };
 pub use solver::{Accumulation, GpuMemory, GpuMethod, GpuPhaseTimes, GpuSolver, TimingSource};
+
+/// The wgpu this crate is built on, for callers that need its types.
+pub use wgpu;

@@ -15,27 +15,41 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use clap::Args;
+use clap::{Args, ValueEnum};
 use comfy_table::Table;
 use hooke_core::Solver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, CpuSolver, Method, PhaseTimes};
+use hooke_gpu::{GpuError, GpuMethod, GpuPhaseTimes, GpuSolver, TimingSource};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::sync::Arc;
 
 use crate::format::{OutputFormat, bytes, table};
-use crate::solvers::{MethodArg, OrderArg};
+use crate::solvers::{MethodArg, OrderArg, open_gpu};
+
+/// Which solvers `hooke bench` times.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BenchBackend {
+    Cpu,
+    Gpu,
+    /// CPU and GPU side by side.
+    All,
+}
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
+    /// Solvers to time: the cpu methods, the gpu methods (every accumulation), or both.
+    #[arg(long, value_enum, default_value_t = BenchBackend::Cpu)]
+    pub backend: BenchBackend,
     /// Regular grids to run, as vertices per side.
     #[arg(long, value_delimiter = ',', default_values_t = [128u32, 256, 512, 1024])]
     pub sizes: Vec<u32>,
     /// Vertices of the irregular mesh (0 to skip it).
     #[arg(long, default_value_t = 65_536)]
     pub irregular: u32,
-    /// Methods to run.
+    /// CPU methods to run.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [MethodArg::Gather, MethodArg::Scatter])]
     pub methods: Vec<MethodArg>,
     /// Worker threads (default: one per core).
@@ -59,8 +73,12 @@ struct Row {
     mesh: String,
     vertices: usize,
     springs: usize,
-    method: &'static str,
+    backend: &'static str,
+    method: String,
+    /// CPU threads, or 0 for the GPU.
     threads: usize,
+    /// Where the phase times come from: "wall clock" (cpu, or gpu without timestamps) or "gpu timestamps".
+    phase_timing: &'static str,
     force_calculation_ms: f64,
     force_accumulation_ms: Option<f64>,
     integration_ms: f64,
@@ -68,8 +86,8 @@ struct Row {
     total_ms: f64,
     springs_per_second: f64,
     bytes_per_step: usize,
-    copy_bandwidth_gb_per_s: f64,
-    bandwidth_floor_ms: f64,
+    copy_bandwidth_gb_per_s: Option<f64>,
+    bandwidth_floor_ms: Option<f64>,
     dt_above_stability_bound: bool,
 }
 
@@ -78,6 +96,7 @@ struct Report {
     cpu: String,
     simd: &'static str,
     threads: usize,
+    gpu: Option<String>,
     steps: u32,
     rows: Vec<Row>,
 }
@@ -99,11 +118,39 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             args.irregular,
         ));
     }
+    let gpu = match args.backend {
+        BenchBackend::Cpu => None,
+        BenchBackend::Gpu | BenchBackend::All => Some(open_gpu()?),
+    };
+    let run_cpu = args.backend != BenchBackend::Gpu;
     let mut rows = Vec::new();
     for (name, section, vertex_count) in meshes {
         let scene =
             benchmark_scene(section, vertex_count).with_context(|| format!("building {name}"))?;
-        for method in &args.methods {
+        if let Some(context) = &gpu {
+            for method in GpuMethod::all() {
+                let mut solver = match GpuSolver::new(
+                    Arc::clone(context),
+                    &scene.model,
+                    &scene.params,
+                    method,
+                ) {
+                    Ok(solver) => solver,
+                    Err(GpuError::Unsupported { .. }) => continue,
+                    Err(error) => {
+                        return Err(error)
+                            .with_context(|| format!("{name}, gpu {}", method.name()));
+                    }
+                };
+                let row = measure_gpu(&name, &scene, &mut solver, args)
+                    .with_context(|| format!("{name}, {}", solver.describe()))?;
+                if args.format == OutputFormat::Table {
+                    eprintln!("  {name} gpu {}: {:.3} ms/step", row.method, row.total_ms);
+                }
+                rows.push(row);
+            }
+        }
+        for method in args.methods.iter().filter(|_| run_cpu) {
             let options = CpuOptions {
                 method: (*method).into(),
                 threads: Some(threads),
@@ -123,6 +170,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         cpu: cpu_name(),
         simd: InstructionSet::Best.resolved_name(),
         threads,
+        gpu: gpu.as_ref().map(|c| c.describe()),
         steps: args.steps,
         rows,
     };
@@ -187,8 +235,10 @@ fn measure(
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
         springs: scene.model.spring_count(),
-        method: method.name(),
+        backend: "cpu",
+        method: method.name().to_owned(),
         threads: solver.threads(),
+        phase_timing: "wall clock",
         force_calculation_ms: median(phases.iter().map(|p| p.force_calculation).collect()),
         force_accumulation_ms: (method == Method::Scatter).then(|| {
             median(
@@ -203,8 +253,62 @@ fn measure(
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step,
-        copy_bandwidth_gb_per_s: bandwidth / 1e9,
-        bandwidth_floor_ms: 1e3 * bytes_per_step as f64 / bandwidth,
+        copy_bandwidth_gb_per_s: Some(bandwidth / 1e9),
+        bandwidth_floor_ms: Some(1e3 * bytes_per_step as f64 / bandwidth),
+        dt_above_stability_bound: scene.params.dt > scene.max_stable_dt,
+    })
+}
+
+fn measure_gpu(
+    name: &str,
+    scene: &Scene,
+    solver: &mut GpuSolver,
+    args: &BenchArgs,
+) -> anyhow::Result<Row> {
+    solver.step(args.warmup)?;
+    let batches = args.steps.div_ceil(STEPS_PER_SAMPLE);
+    let mut totals = Vec::with_capacity(batches as usize);
+    for _ in 0..batches {
+        // Includes one small status read-back per batch, as every `hooke run` batch has.
+        let start = Instant::now();
+        solver.step(STEPS_PER_SAMPLE)?;
+        totals.push(start.elapsed() / STEPS_PER_SAMPLE);
+    }
+    let mut phases: Vec<GpuPhaseTimes> = Vec::with_capacity(args.steps as usize);
+    for _ in 0..args.steps {
+        phases.push(solver.step_timed()?);
+    }
+    let total_ms = median(totals);
+    let memory = solver.memory();
+    let timing = match phases.first().map(|p| p.source) {
+        Some(TimingSource::Timestamps) => "gpu timestamps",
+        _ => "wall clock",
+    };
+    let method = solver.method();
+    Ok(Row {
+        mesh: name.to_owned(),
+        vertices: scene.model.vertex_count(),
+        springs: scene.model.spring_count(),
+        backend: "gpu",
+        method: method.name(),
+        threads: 0,
+        phase_timing: timing,
+        force_calculation_ms: median(phases.iter().map(|p| p.force_calculation).collect()),
+        force_accumulation_ms: matches!(method, GpuMethod::Scatter(_)).then(|| {
+            median(
+                phases
+                    .iter()
+                    .map(|p| p.force_accumulation.unwrap_or_default())
+                    .collect(),
+            )
+        }),
+        integration_ms: median(phases.iter().map(|p| p.integration).collect()),
+        phased_total_ms: median(phases.iter().map(GpuPhaseTimes::total).collect()),
+        total_ms,
+        springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
+        bytes_per_step: memory.total() as usize,
+        copy_bandwidth_gb_per_s: None,
+        bandwidth_floor_ms: None,
         dt_above_stability_bound: scene.params.dt > scene.max_stable_dt,
     })
 }
@@ -245,12 +349,21 @@ fn cpu_name() -> String {
 
 fn print_report(report: &Report) {
     println!(
-        "hooke bench: cpu backend, {} threads, {} SIMD, {}; medians of {} steps",
-        report.threads, report.simd, report.cpu, report.steps
+        "hooke bench: cpu {} ({} threads, {} SIMD){}; medians of {} steps",
+        report.cpu,
+        report.threads,
+        report.simd,
+        report
+            .gpu
+            .as_ref()
+            .map(|g| format!(", gpu {g}"))
+            .unwrap_or_default(),
+        report.steps
     );
     let mut t = Table::new();
     t.set_header(vec![
         "mesh",
+        "backend",
         "method",
         "force calc ms",
         "force accum ms",
@@ -269,7 +382,8 @@ fn print_report(report: &Report) {
         };
         t.add_row(vec![
             mesh,
-            r.method.to_owned(),
+            r.backend.to_owned(),
+            r.method.clone(),
             format!("{:.3}", r.force_calculation_ms),
             r.force_accumulation_ms
                 .map_or("-".to_owned(), |a| format!("{a:.3}")),
@@ -278,7 +392,8 @@ fn print_report(report: &Report) {
             format!("{:.3}", r.total_ms),
             format!("{:.0}", r.springs_per_second / 1e6),
             bytes(r.bytes_per_step),
-            format!("{:.3}", r.bandwidth_floor_ms),
+            r.bandwidth_floor_ms
+                .map_or("-".to_owned(), |f| format!("{f:.3}")),
         ]);
     }
     println!("{}", table(t));
@@ -288,6 +403,12 @@ fn print_report(report: &Report) {
     println!(
         "total: the fused step as `hooke run` executes it; bw floor: bytes/step over measured copy bandwidth."
     );
+    if let Some(gpu) = report.rows.iter().find(|r| r.backend == "gpu") {
+        println!(
+            "gpu: phases from {}; total includes one status read-back per 10 steps; bytes/step is the GPU memory the method allocates.",
+            gpu.phase_timing
+        );
+    }
     if report.rows.iter().any(|r| r.dt_above_stability_bound) {
         println!(
             "*: the workload's dt exceeds hooke's conservative stability bound on this mesh (it ran stably here)."

@@ -7,15 +7,21 @@ use comfy_table::Table;
 use hooke_core::stability::stability_limit;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
+use hooke_gpu::{GpuContext, GpuMethod, GpuSolver, list_adapters};
 use serde::Serialize;
+use std::sync::Arc;
 
 use crate::format::{OutputFormat, bytes, table};
 use crate::scene_loading::load_scene;
 
 #[derive(Debug, Args)]
+#[command(arg_required_else_help = true)]
 pub struct InfoArgs {
     /// Scene file (TOML).
-    pub scene: PathBuf,
+    pub scene: Option<PathBuf>,
+    /// List GPU adapters and their optional features.
+    #[arg(long)]
+    pub gpu: bool,
     #[arg(long, value_enum, default_value_t = OutputFormat::Table)]
     pub format: OutputFormat,
 }
@@ -35,6 +41,25 @@ struct MethodMemory {
 }
 
 #[derive(Debug, Serialize)]
+struct GpuMethodMemory {
+    method: String,
+    positions_bytes: u64,
+    topology_bytes: u64,
+    per_step_bytes: u64,
+    total_bytes: u64,
+}
+
+#[derive(Debug, Serialize)]
+struct AdapterEntry {
+    name: String,
+    backend: String,
+    device_type: String,
+    shader_float32_atomic: bool,
+    timestamp_query: bool,
+    float32_blendable: bool,
+}
+
+#[derive(Debug, Serialize)]
 struct Info {
     scene: String,
     vertices: usize,
@@ -50,10 +75,19 @@ struct Info {
     limiting_vertex: Option<usize>,
     dt: f64,
     memory: Vec<MethodMemory>,
+    /// GPU buffers each method allocates on the adapter in use (empty without a GPU).
+    gpu_adapter: Option<String>,
+    gpu_memory: Vec<GpuMethodMemory>,
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
-    let scene = load_scene(&args.scene, true)?;
+    if args.gpu {
+        print_adapters(args.format)?;
+    }
+    let Some(path) = &args.scene else {
+        return Ok(());
+    };
+    let scene = load_scene(path, true)?;
     let model = &scene.model;
     let (n_v, n_e) = (model.vertex_count(), model.spring_count());
     let histogram = model.valence_histogram();
@@ -85,6 +119,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             total_bytes: used.total(),
         });
     }
+    let (gpu_adapter, gpu_memory) = gpu_memory(&scene);
     let info = Info {
         scene: scene.name.clone(),
         vertices: n_v,
@@ -99,6 +134,8 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         limiting_vertex: limit.limiting_vertex,
         dt: scene.params.dt,
         memory,
+        gpu_adapter,
+        gpu_memory,
     };
     match args.format {
         OutputFormat::Json => println!("{}", serde_json::to_string_pretty(&info)?),
@@ -170,4 +207,104 @@ fn print_info(info: &Info) {
     }
     println!("memory (paper's Table 1 model next to what the cpu solver allocates):");
     println!("{}", table(memory));
+    match &info.gpu_adapter {
+        Some(adapter) => {
+            let mut gpu = Table::new();
+            gpu.set_header(vec![
+                "gpu method",
+                "positions",
+                "topology",
+                "per-step",
+                "total",
+            ]);
+            for m in &info.gpu_memory {
+                gpu.add_row(vec![
+                    m.method.clone(),
+                    bytes(m.positions_bytes as usize),
+                    bytes(m.topology_bytes as usize),
+                    bytes(m.per_step_bytes as usize),
+                    bytes(m.total_bytes as usize),
+                ]);
+            }
+            println!("gpu buffers on {adapter} (methods the adapter supports):");
+            println!("{}", table(gpu));
+        }
+        None => println!("gpu buffers: no GPU adapter available"),
+    }
+}
+
+/// GPU buffer bytes of every method the adapter supports, from real allocations.
+fn gpu_memory(scene: &hooke_core::scene::Scene) -> (Option<String>, Vec<GpuMethodMemory>) {
+    let Ok(context) = GpuContext::new() else {
+        return (None, Vec::new());
+    };
+    let rows = GpuMethod::all()
+        .into_iter()
+        .filter_map(|method| {
+            let solver =
+                GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method).ok()?;
+            let m = solver.memory();
+            Some(GpuMethodMemory {
+                method: method.name(),
+                positions_bytes: m.positions,
+                topology_bytes: m.topology,
+                per_step_bytes: m.per_step,
+                total_bytes: m.total(),
+            })
+        })
+        .collect();
+    (Some(context.describe()), rows)
+}
+
+fn print_adapters(format: OutputFormat) -> anyhow::Result<()> {
+    let adapters: Vec<AdapterEntry> = list_adapters()
+        .into_iter()
+        .map(|a| AdapterEntry {
+            name: a.info.name.clone(),
+            backend: format!("{:?}", a.info.backend),
+            device_type: format!("{:?}", a.info.device_type),
+            shader_float32_atomic: a
+                .features
+                .contains(hooke_gpu::wgpu::Features::SHADER_FLOAT32_ATOMIC),
+            timestamp_query: a
+                .features
+                .contains(hooke_gpu::wgpu::Features::TIMESTAMP_QUERY),
+            float32_blendable: a
+                .features
+                .contains(hooke_gpu::wgpu::Features::FLOAT32_BLENDABLE),
+        })
+        .collect();
+    if format == OutputFormat::Json {
+        println!("{}", serde_json::to_string_pretty(&adapters)?);
+        return Ok(());
+    }
+    let yes = |b: bool| if b { "yes" } else { "no" }.to_owned();
+    let mut t = Table::new();
+    t.set_header(vec![
+        "adapter",
+        "backend",
+        "type",
+        "float32 atomics",
+        "timestamps",
+        "float32 blending",
+    ]);
+    for a in &adapters {
+        t.add_row(vec![
+            a.name.clone(),
+            a.backend.clone(),
+            a.device_type.clone(),
+            yes(a.shader_float32_atomic),
+            yes(a.timestamp_query),
+            yes(a.float32_blendable),
+        ]);
+    }
+    println!("{}", table(t));
+    match GpuContext::new() {
+        Ok(context) => println!(
+            "in use: {} (WGPU_BACKEND / WGPU_ADAPTER_NAME choose another)",
+            context.describe()
+        ),
+        Err(error) => println!("in use: none ({error})"),
+    }
+    Ok(())
 }

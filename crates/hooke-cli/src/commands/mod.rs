@@ -1,3 +1,4 @@
+pub mod accuracy;
 pub mod bench;
 pub mod info;
 pub mod run;
