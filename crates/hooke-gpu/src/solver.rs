@@ -402,6 +402,12 @@ impl GpuSolver {
         self.method
     }
 
+    /// Times phases with the wall clock even if the adapter has timestamp queries (the path
+    /// taken on adapters without them).
+    pub fn use_wall_clock_timing(&mut self) {
+        self.timestamps = None;
+    }
+
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.context
     }
