@@ -27,6 +27,8 @@ enum Command {
     Bench(commands::bench::BenchArgs),
     /// Compare every method and accumulation precision with the float64 reference.
     Accuracy(commands::accuracy::AccuracyArgs),
+    /// Simulate on the GPU and draw offscreen: PNG frames, one PNG, or an MP4 (with ffmpeg).
+    Render(commands::render::RenderArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +37,7 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info::run(&args),
         Command::Bench(args) => commands::bench::run(&args),
         Command::Accuracy(args) => commands::accuracy::run(&args),
+        Command::Render(args) => commands::render::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,6 +5,7 @@ mod context;
 mod gpu;
 mod kernels;
 pub mod layout;
+pub mod render;
 mod solver;
 
 pub use context::{

@@ -640,6 +640,26 @@ impl GpuSolver {
         }
     }
 
+    /// Records `steps` steps into `encoder`, for a frame that also draws: simulation passes,
+    /// then the caller's render pass, in one submission. Nothing is read back; call
+    /// [`GpuSolver::check`] when a verdict is needed.
+    pub fn encode_steps(&mut self, encoder: &mut wgpu::CommandEncoder, steps: u32) {
+        for _ in 0..steps {
+            self.encode_step(encoder, &mut None);
+            self.current = 1 - self.current;
+        }
+        self.steps_taken += u64::from(steps);
+    }
+
+    /// Waits for submitted work and reports a non-finite position, an accumulator overflow or
+    /// a device error since the solver started.
+    pub fn check(&mut self) -> Result<(), SimError> {
+        self.check_status().map_err(|e| match e {
+            RunError::Sim(e) => e,
+            RunError::Gpu(e) => SimError::Device(e.to_string()),
+        })
+    }
+
     /// Runs `steps` steps in one submission and checks the status once at the end.
     fn run_steps(&mut self, steps: u32) -> Result<(), RunError> {
         let mut encoder =

@@ -240,8 +240,14 @@ fn fixed_point_overflow_is_reported_not_silent() {
 fn timed_steps_equal_plain_steps_with_either_clock() {
     let Some(context) = context() else { return };
     let scene = benchmark_scene(MeshSection::unit_grid(16, 16), 256);
-    for method in [GpuMethod::Gather, GpuMethod::Scatter(Accumulation::AtomicFixed)] {
-        let build = || GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method).expect("solver");
+    for method in [
+        GpuMethod::Gather,
+        GpuMethod::Scatter(Accumulation::AtomicFixed),
+    ] {
+        let build = || {
+            GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method)
+                .expect("solver")
+        };
         let mut plain = build();
         plain.step(6).expect("stable");
         let mut timed = build();
@@ -253,8 +259,14 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
             assert_eq!(with_clock.source, hooke_gpu::TimingSource::WallClock);
             assert!(with_clock.force_calculation > std::time::Duration::ZERO);
             assert!(with_clock.integration > std::time::Duration::ZERO);
-            assert_eq!(with_clock.force_accumulation.is_some(), method != GpuMethod::Gather);
-            assert_eq!(with_timestamps.force_accumulation.is_some(), method != GpuMethod::Gather);
+            assert_eq!(
+                with_clock.force_accumulation.is_some(),
+                method != GpuMethod::Gather
+            );
+            assert_eq!(
+                with_timestamps.force_accumulation.is_some(),
+                method != GpuMethod::Gather
+            );
         }
         let expected = plain.read_state();
         assert!(timed.read_state() == expected, "{}", method.name());

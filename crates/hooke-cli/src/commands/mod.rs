@@ -1,4 +1,5 @@
 pub mod accuracy;
 pub mod bench;
 pub mod info;
+pub mod render;
 pub mod run;

@@ -1,0 +1,487 @@
+//! Drawing the cloth straight from the simulation's position buffer (paper Sections 3 and 6):
+//! displaced positions never leave GPU memory. A frame is one encoder: the simulation passes,
+//! a compute pass for normals, then one render pass into any `TextureView` (a window's surface
+//! or an offscreen texture: the same code).
+
+mod camera;
+mod image_file;
+mod offscreen;
+mod offscreen_run;
+
+pub use camera::Camera;
+pub use image_file::{Image, ImageError};
+pub use offscreen::OffscreenTarget;
+pub use offscreen_run::{FrameError, OffscreenRun};
+
+use bytemuck::{Pod, Zeroable};
+use glam::{DVec3, Vec3};
+use hooke_core::Model;
+use wgpu::util::DeviceExt;
+
+use crate::context::GpuContext;
+use crate::gpu::{self, bind_group, compute_pipeline, storage};
+
+const NORMALS: &str = include_str!("normals.wgsl");
+const SCENE: &str = include_str!("scene.wgsl");
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// What to draw besides the shaded cloth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Colour by the largest strain of each triangle instead of a checker pattern.
+    pub color_by_strain: bool,
+    /// Strain shown at full red.
+    pub strain_scale: f32,
+    /// Draw every spring as a line.
+    pub wireframe: bool,
+    /// Mark pinned vertices.
+    pub show_pins: bool,
+    /// Wind velocity (m/s) to draw as arrows, if any.
+    pub wind: Option<Vec3>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            color_by_strain: false,
+            strain_scale: 0.2,
+            wireframe: false,
+            show_pins: true,
+            wind: None,
+        }
+    }
+}
+
+/// `Frame` in scene.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct FrameUniforms {
+    view_projection: [[f32; 4]; 4],
+    eye: [f32; 4],
+    center: [f32; 4],
+    light: [f32; 4],
+    ground: [f32; 4],
+    wind: [f32; 4],
+    wind_origin: [f32; 4],
+    style: [f32; 4],
+}
+
+/// Where the scene sits, for framing the camera and placing the ground.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneBounds {
+    pub min: Vec3,
+    pub max: Vec3,
+    /// The ground's height: below the cloth, at y = 0 when the cloth starts above it.
+    pub ground_height: f32,
+}
+
+impl SceneBounds {
+    pub fn of(model: &Model) -> Self {
+        let (lo, hi) = model.initial_positions.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let (min, max) = (lo.as_vec3(), hi.as_vec3());
+        let extent = (max - min).max_element().max(1e-3);
+        Self {
+            min,
+            max,
+            ground_height: 0f32.min(min.y - 0.5 * extent),
+        }
+    }
+
+    pub fn extent(&self) -> f32 {
+        (self.max - self.min).max_element().max(1e-3)
+    }
+
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+}
+
+/// Pipelines and static buffers for drawing one model.
+#[derive(Debug)]
+pub struct SceneRenderer {
+    normals_pipeline: wgpu::ComputePipeline,
+    cloth: wgpu::RenderPipeline,
+    ground: wgpu::RenderPipeline,
+    springs: wgpu::RenderPipeline,
+    pins: wgpu::RenderPipeline,
+    wind: wgpu::RenderPipeline,
+    frame: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    vertex_triangles: wgpu::Buffer,
+    uvs: wgpu::Buffer,
+    rest_edges: wgpu::Buffer,
+    spring_ends: wgpu::Buffer,
+    pinned: wgpu::Buffer,
+    normals: wgpu::Buffer,
+    vertex_count: u32,
+    triangle_count: u32,
+    spring_count: u32,
+    pin_count: u32,
+    bounds: SceneBounds,
+    depth: Option<(wgpu::TextureView, [u32; 2])>,
+}
+
+impl SceneRenderer {
+    /// Builds pipelines for drawing `model` into targets of `format`.
+    pub fn new(
+        context: &GpuContext,
+        model: &Model,
+        format: wgpu::TextureFormat,
+    ) -> Result<Self, crate::GpuError> {
+        let n = model.vertex_count();
+        let none = wgpu::BufferUsages::empty();
+        let triangles: Vec<[u32; 4]> = model
+            .triangles
+            .iter()
+            .map(|t| [t[0], t[1], t[2], 0])
+            .collect();
+        let lists = vertex_triangle_lists(n, &model.triangles);
+        let bounds = SceneBounds::of(model);
+        let uvs = texture_coordinates(model, &bounds);
+        let rest_edges: Vec<[f32; 4]> = model
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| model.initial_positions[i as usize]);
+                [
+                    p[0].distance(p[1]),
+                    p[1].distance(p[2]),
+                    p[2].distance(p[0]),
+                    1.0,
+                ]
+                .map(|l| l.max(1e-12) as f32)
+            })
+            .collect();
+        let pinned: Vec<u32> = (0..n as u32)
+            .filter(|&v| model.pinned[v as usize])
+            .collect();
+        let counts = context
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("render counts"),
+                contents: bytemuck::cast_slice(&[n as u32, 0, 0, 0]),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let frame = context.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame uniforms"),
+            size: std::mem::size_of::<FrameUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let scene_module = shader(context, "scene", SCENE);
+        let depth = wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        };
+        let pipeline =
+            |label: &str, vertex: &str, fragment: &str, topology: wgpu::PrimitiveTopology| {
+                context
+                    .device
+                    .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                        label: Some(label),
+                        layout: None,
+                        vertex: wgpu::VertexState {
+                            module: &scene_module,
+                            entry_point: Some(vertex),
+                            compilation_options: Default::default(),
+                            buffers: &[],
+                        },
+                        primitive: wgpu::PrimitiveState {
+                            topology,
+                            ..Default::default()
+                        },
+                        depth_stencil: Some(depth.clone()),
+                        multisample: Default::default(),
+                        fragment: Some(wgpu::FragmentState {
+                            module: &scene_module,
+                            entry_point: Some(fragment),
+                            compilation_options: Default::default(),
+                            targets: &[Some(format.into())],
+                        }),
+                        multiview_mask: None,
+                        cache: None,
+                    })
+            };
+        let scope = context
+            .device
+            .push_error_scope(wgpu::ErrorFilter::Validation);
+        let list = wgpu::PrimitiveTopology::TriangleList;
+        let lines = wgpu::PrimitiveTopology::LineList;
+        let renderer = Self {
+            normals_pipeline: compute_pipeline(context, "normals", NORMALS, "main")?,
+            cloth: pipeline("cloth", "vs_cloth", "fs_cloth", list),
+            ground: pipeline("ground", "vs_ground", "fs_ground", list),
+            springs: pipeline("springs", "vs_springs", "fs_flat", lines),
+            pins: pipeline("pins", "vs_pins", "fs_flat", list),
+            wind: pipeline("wind arrows", "vs_wind", "fs_flat", lines),
+            frame,
+            counts,
+            triangles: storage(context, "render triangles", &triangles, none),
+            vertex_triangles: storage(context, "render vertex triangles", &lists, none),
+            uvs: storage(context, "texture coordinates", &uvs, none),
+            rest_edges: storage(context, "rest edge lengths", &rest_edges, none),
+            spring_ends: storage(context, "spring ends", &model.spring_ends, none),
+            pinned: storage(context, "pinned vertices", &pinned, none),
+            normals: gpu::zeroed(context, "normals", 16 * n as u64, none),
+            vertex_count: n as u32,
+            triangle_count: model.triangles.len() as u32,
+            spring_count: model.spring_count() as u32,
+            pin_count: pinned.len() as u32,
+            bounds,
+            depth: None,
+        };
+        if let Some(error) = pollster::block_on(scope.pop()) {
+            return Err(crate::GpuError::Validation(format!("renderer: {error}")));
+        }
+        Ok(renderer)
+    }
+
+    pub fn bounds(&self) -> SceneBounds {
+        self.bounds
+    }
+
+    fn depth_view(&mut self, context: &GpuContext, size: [u32; 2]) -> wgpu::TextureView {
+        if let Some((view, depth_size)) = &self.depth
+            && *depth_size == size
+        {
+            return view.clone();
+        }
+        let texture = context.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size: wgpu::Extent3d {
+                width: size[0],
+                height: size[1],
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        self.depth = Some((view.clone(), size));
+        view
+    }
+
+    /// Records the normals pass and the render pass drawing `positions` (the solver's current
+    /// position buffer, vec4 per vertex) into `target` of `size` pixels.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        positions: &wgpu::Buffer,
+        target: &wgpu::TextureView,
+        size: [u32; 2],
+        camera: &Camera,
+        options: &RenderOptions,
+    ) {
+        let aspect = size[0] as f32 / size[1].max(1) as f32;
+        let uniforms = self.frame_uniforms(camera, aspect, options);
+        context
+            .queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
+        let normals_group = bind_group(
+            context,
+            "normals",
+            &self.normals_pipeline.get_bind_group_layout(0),
+            &[
+                (0, positions.as_entire_binding()),
+                (1, self.triangles.as_entire_binding()),
+                (2, self.vertex_triangles.as_entire_binding()),
+                (3, self.normals.as_entire_binding()),
+                (4, self.counts.as_entire_binding()),
+            ],
+        );
+        gpu::dispatch(
+            encoder,
+            "normals",
+            &self.normals_pipeline,
+            &normals_group,
+            self.vertex_count,
+            None,
+        );
+        let group_for = |pipeline: &wgpu::RenderPipeline, bindings: &[u32]| {
+            let all = [
+                (0, self.frame.as_entire_binding()),
+                (1, positions.as_entire_binding()),
+                (2, self.normals.as_entire_binding()),
+                (3, self.triangles.as_entire_binding()),
+                (4, self.uvs.as_entire_binding()),
+                (5, self.rest_edges.as_entire_binding()),
+                (6, self.spring_ends.as_entire_binding()),
+                (7, self.pinned.as_entire_binding()),
+            ];
+            let used: Vec<(u32, wgpu::BindingResource<'_>)> = all
+                .into_iter()
+                .filter(|(b, _)| bindings.contains(b))
+                .collect();
+            bind_group(context, "scene", &pipeline.get_bind_group_layout(0), &used)
+        };
+        let cloth_group = group_for(&self.cloth, &[0, 1, 2, 3, 4, 5]);
+        let ground_group = group_for(&self.ground, &[0]);
+        let springs_group = group_for(&self.springs, &[0, 1, 6]);
+        let pins_group = group_for(&self.pins, &[0, 1, 7]);
+        let wind_group = group_for(&self.wind, &[0]);
+        let depth = self.depth_view(context, size);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("scene"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: 0.80,
+                        g: 0.85,
+                        b: 0.92,
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.ground);
+        pass.set_bind_group(0, &ground_group, &[]);
+        pass.draw(0..6, 0..1);
+        pass.set_pipeline(&self.cloth);
+        pass.set_bind_group(0, &cloth_group, &[]);
+        pass.draw(0..3 * self.triangle_count, 0..1);
+        if options.wireframe {
+            pass.set_pipeline(&self.springs);
+            pass.set_bind_group(0, &springs_group, &[]);
+            pass.draw(0..2 * self.spring_count, 0..1);
+        }
+        if options.show_pins && self.pin_count > 0 {
+            pass.set_pipeline(&self.pins);
+            pass.set_bind_group(0, &pins_group, &[]);
+            pass.draw(0..6, 0..self.pin_count);
+        }
+        if options.wind.is_some_and(|w| w.length() > 0.0) {
+            pass.set_pipeline(&self.wind);
+            pass.set_bind_group(0, &wind_group, &[]);
+            pass.draw(0..6, 0..16);
+        }
+    }
+
+    fn frame_uniforms(
+        &self,
+        camera: &Camera,
+        aspect: f32,
+        options: &RenderOptions,
+    ) -> FrameUniforms {
+        let extent = self.bounds.extent();
+        let center = self.bounds.center();
+        let eye = camera.eye();
+        let wind = options.wind.unwrap_or(Vec3::ZERO);
+        let direction = wind.normalize_or(Vec3::X);
+        // Arrows upwind of the scene, as long as the wind is strong (capped to the scene size).
+        let length = (0.1 * wind.length()).clamp(0.1 * extent, 0.4 * extent);
+        let origin = center - direction * (0.9 * extent);
+        let v4 = |v: Vec3, w: f32| [v.x, v.y, v.z, w];
+        FrameUniforms {
+            view_projection: camera.view_projection(aspect).to_cols_array_2d(),
+            eye: v4(eye, 1.0),
+            center: v4(center, 1.0),
+            light: v4(Vec3::new(0.6, 0.8, 0.35).normalize(), 0.0),
+            ground: [
+                self.bounds.ground_height,
+                3.0 * extent,
+                0.25 * extent,
+                8.0 * extent,
+            ],
+            wind: v4(direction, length),
+            wind_origin: v4(origin, 0.25 * extent),
+            style: [
+                if options.color_by_strain { 1.0 } else { 0.0 },
+                options.strain_scale,
+                0.012 * extent,
+                0.0,
+            ],
+        }
+    }
+}
+
+fn shader(context: &GpuContext, label: &str, source: &str) -> wgpu::ShaderModule {
+    context
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        })
+}
+
+/// `vertex_count + 1` offsets, then each vertex's triangle indices.
+fn vertex_triangle_lists(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let mut offsets = vec![0u32; vertex_count + 1];
+    for t in triangles {
+        for &v in t {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for v in 0..vertex_count {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut cursor = offsets.clone();
+    offsets.resize(vertex_count + 1 + 3 * triangles.len(), 0);
+    for (index, t) in triangles.iter().enumerate() {
+        for &v in t {
+            offsets[vertex_count + 1 + cursor[v as usize] as usize] = index as u32;
+            cursor[v as usize] += 1;
+        }
+    }
+    offsets
+}
+
+/// Texture coordinates from the rest shape, over the two axes of largest extent.
+fn texture_coordinates(model: &Model, bounds: &SceneBounds) -> Vec<[f32; 2]> {
+    let extent = bounds.max - bounds.min;
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|a, b| extent[*b].total_cmp(&extent[*a]));
+    let size = extent[axes[0]].max(1e-6);
+    model
+        .initial_positions
+        .iter()
+        .map(|p| {
+            let q = p.as_vec3() - bounds.min;
+            [q[axes[0]] / size, q[axes[1]] / size]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn render_shaders_validate() {
+        for (name, source) in [("normals", super::NORMALS), ("scene", super::SCENE)] {
+            let module = naga::front::wgsl::parse_str(source)
+                .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+            naga::valid::Validator::new(
+                naga::valid::ValidationFlags::all(),
+                naga::valid::Capabilities::empty(),
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+        }
+    }
+}

@@ -1,0 +1,27 @@
+// Per-vertex normals for drawing, recomputed every frame on the GPU from the current
+// positions: the area-weighted sum of the normals of the vertex's triangles.
+
+@group(0) @binding(0) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> triangles: array<vec4<u32>>;
+// vertex_count + 1 offsets of each vertex's triangle list, then the lists.
+@group(0) @binding(2) var<storage, read> vertex_triangles: array<u32>;
+@group(0) @binding(3) var<storage, read_write> normals: array<vec4<f32>>;
+@group(0) @binding(4) var<uniform> counts: vec4<u32>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let v = id.x + id.y * groups.x * 64u;
+    let vertex_count = counts.x;
+    if v >= vertex_count {
+        return;
+    }
+    var sum = vec3<f32>(0.0);
+    for (var k = vertex_triangles[v]; k < vertex_triangles[v + 1u]; k++) {
+        let t = triangles[vertex_triangles[vertex_count + 1u + k]];
+        let p0 = positions[t.x].xyz;
+        // Twice the area times the unit normal: larger triangles weigh more.
+        sum += cross(positions[t.y].xyz - p0, positions[t.z].xyz - p0);
+    }
+    let length = length(sum);
+    normals[v] = vec4<f32>(select(vec3<f32>(0.0, 1.0, 0.0), sum / length, length > 0.0), 0.0);
+}
