@@ -398,3 +398,78 @@ fn gpu_bench_prints_every_accumulation() {
         assert!(methods.contains(&expected), "{expected} in {methods:?}");
     }
 }
+
+#[test]
+fn render_writes_png_frames_and_a_last_frame() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let frames = dir.path().join("frames");
+    let result = hooke(&[
+        "render",
+        path_str(&scene),
+        "--out",
+        path_str(&frames),
+        "--frames",
+        "3",
+        "--size",
+        "64x48",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    for frame in 0..3 {
+        let image =
+            hooke_gpu::render::Image::load_png(&frames.join(format!("frame-{frame:05}.png")))
+                .expect("png");
+        assert_eq!(image.size, [64, 48]);
+    }
+    let last = dir.path().join("last.png");
+    let result = hooke(&[
+        "render",
+        path_str(&scene),
+        "--out",
+        path_str(&last),
+        "--frames",
+        "2",
+        "--size",
+        "32x32",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    assert!(text(&result.stdout).contains("last.png"));
+}
+
+#[test]
+fn render_to_mp4_uses_ffmpeg_or_says_it_is_missing() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let video = dir.path().join("cloth.mp4");
+    let has_ffmpeg = Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    let result = hooke(&[
+        "render",
+        path_str(&scene),
+        "--out",
+        path_str(&video),
+        "--frames",
+        "4",
+        "--size",
+        "64x48",
+    ]);
+    if has_ffmpeg {
+        assert!(result.status.success(), "{}", text(&result.stderr));
+        assert!(std::fs::metadata(&video).is_ok_and(|m| m.len() > 0));
+    } else {
+        assert!(!result.status.success());
+        let stderr = text(&result.stderr);
+        assert!(
+            stderr.contains("needs ffmpeg") && stderr.contains("apt-get install ffmpeg"),
+            "{stderr}"
+        );
+    }
+}

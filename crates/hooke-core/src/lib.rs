@@ -1,6 +1,7 @@
 //! hooke-core: the mass-spring model of Georgii & Westermann, "Mass-Spring Systems on the GPU",
 //! its scenes and meshes, and the float64 reference solver every other solver is checked against.
 
+pub mod atomic_file;
 pub mod diagnostics;
 pub mod forces;
 pub mod mesh;

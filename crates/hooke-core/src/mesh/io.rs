@@ -4,7 +4,7 @@
 //! (or a killed run) never sees a torn file.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Write};
+use std::io::BufReader;
 use std::path::Path;
 
 use glam::DVec3;
@@ -302,19 +302,10 @@ fn write_ply(
         .collect();
     ply.payload.insert("face".to_owned(), faces);
 
-    let directory = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let temporary = tempfile::NamedTempFile::new_in(directory)?;
-    {
-        let mut writer = BufWriter::new(temporary.as_file());
-        Writer::<DefaultElement>::new().write_ply(&mut writer, &mut ply)?;
-        writer.flush()?;
-    }
-    temporary.as_file().sync_data()?;
-    temporary.persist(path).map_err(|e| e.error)?;
-    Ok(())
+    crate::atomic_file::write_atomically(path, |writer| {
+        Writer::<DefaultElement>::new().write_ply(&mut &mut *writer, &mut ply)?;
+        Ok(())
+    })
 }
 
 #[cfg(test)]

@@ -1,6 +1,5 @@
 //! Rendered images as PNG files, written atomically (a temporary file renamed into place).
 
-use std::io::{BufWriter, Write};
 use std::path::Path;
 
 /// An 8-bit RGBA image.
@@ -28,28 +27,16 @@ fn io_error(path: &Path) -> impl Fn(String) -> ImageError + '_ {
 
 impl Image {
     pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
-        let error = io_error(path);
-        let directory = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let temporary =
-            tempfile::NamedTempFile::new_in(directory).map_err(|e| error(e.to_string()))?;
-        {
-            let mut writer = BufWriter::new(temporary.as_file());
-            let mut encoder = png::Encoder::new(&mut writer, self.size[0], self.size[1]);
+        hooke_core::atomic_file::write_atomically(path, |writer| {
+            let mut encoder = png::Encoder::new(writer, self.size[0], self.size[1]);
             encoder.set_color(png::ColorType::Rgba);
             encoder.set_depth(png::BitDepth::Eight);
-            let mut png = encoder.write_header().map_err(|e| error(e.to_string()))?;
+            let mut png = encoder.write_header().map_err(std::io::Error::other)?;
             png.write_image_data(&self.rgba)
-                .map_err(|e| error(e.to_string()))?;
-            png.finish().map_err(|e| error(e.to_string()))?;
-            writer.flush().map_err(|e| error(e.to_string()))?;
-        }
-        temporary
-            .persist(path)
-            .map_err(|e| error(e.error.to_string()))?;
-        Ok(())
+                .map_err(std::io::Error::other)?;
+            png.finish().map_err(std::io::Error::other)
+        })
+        .map_err(|e| io_error(path)(e.to_string()))
     }
 
     pub fn load_png(path: &Path) -> Result<Self, ImageError> {
@@ -78,6 +65,52 @@ impl Image {
         Ok(Self {
             size: [info.width, info.height],
             rgba,
+        })
+    }
+}
+
+/// How two images of the same size differ.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageDifference {
+    /// Largest difference of any channel (0..255).
+    pub max: u8,
+    /// Share of pixels with a channel differing by more than the per-pixel threshold.
+    pub differing_share: f64,
+    /// Red where pixels differ beyond the threshold, the expected image faded elsewhere.
+    pub diff: Image,
+}
+
+impl Image {
+    /// Compares with `expected`; a pixel differs when a channel is off by more than `threshold`.
+    pub fn difference(&self, expected: &Image, threshold: u8) -> Option<ImageDifference> {
+        if self.size != expected.size {
+            return None;
+        }
+        let mut max = 0u8;
+        let mut differing = 0usize;
+        let mut diff = Vec::with_capacity(self.rgba.len());
+        for (a, e) in self.rgba.chunks(4).zip(expected.rgba.chunks(4)) {
+            let worst = a
+                .iter()
+                .zip(e)
+                .map(|(x, y)| x.abs_diff(*y))
+                .max()
+                .unwrap_or(0);
+            max = max.max(worst);
+            if worst > threshold {
+                differing += 1;
+                diff.extend([255, 0, 0, 255]);
+            } else {
+                diff.extend([e[0] / 3 + 170, e[1] / 3 + 170, e[2] / 3 + 170, 255]);
+            }
+        }
+        Some(ImageDifference {
+            max,
+            differing_share: differing as f64 / (self.rgba.len() / 4).max(1) as f64,
+            diff: Image {
+                size: self.size,
+                rgba: diff,
+            },
         })
     }
 }
