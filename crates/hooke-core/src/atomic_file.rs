@@ -40,7 +40,7 @@ mod tests {
     fn failed_write_leaves_neither_target_nor_temporary() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("out.bin");
-        let result = write_atomically(&path, &mut |w: &mut dyn Write| {
+        let result = write_atomically(&path, |w: &mut dyn Write| {
             w.write_all(b"partial")?;
             Err(std::io::Error::other("interrupted"))
         });
