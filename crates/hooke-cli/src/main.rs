@@ -4,6 +4,7 @@ mod commands;
 mod format;
 mod scene_loading;
 mod solvers;
+mod viewer;
 
 use std::process::ExitCode;
 
@@ -29,6 +30,8 @@ enum Command {
     Accuracy(commands::accuracy::AccuracyArgs),
     /// Simulate on the GPU and draw offscreen: PNG frames, one PNG, or an MP4 (with ffmpeg).
     Render(commands::render::RenderArgs),
+    /// Open the interactive viewer: drag the cloth, change parameters live.
+    View(viewer::ViewArgs),
 }
 
 fn main() -> ExitCode {
@@ -38,6 +41,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => commands::bench::run(&args),
         Command::Accuracy(args) => commands::accuracy::run(&args),
         Command::Render(args) => commands::render::run(&args),
+        Command::View(args) => viewer::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

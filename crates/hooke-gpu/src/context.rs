@@ -73,9 +73,36 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
 impl GpuContext {
     /// Opens the adapter named by `WGPU_ADAPTER_NAME` (and `WGPU_BACKEND`), else the default one.
     pub fn new() -> Result<Arc<Self>, GpuError> {
-        let instance = instance();
+        Self::open(&instance(), None)
+    }
+
+    /// Opens an adapter that can present to `window`, and the surface for it.
+    pub fn for_window<W>(window: Arc<W>) -> Result<(Arc<Self>, wgpu::Surface<'static>), GpuError>
+    where
+        W: wgpu::rwh::HasWindowHandle
+            + wgpu::rwh::HasDisplayHandle
+            + std::fmt::Debug
+            + Send
+            + Sync
+            + 'static,
+    {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle_from_env(
+                Box::new(Arc::clone(&window)),
+            ));
+        let surface = instance
+            .create_surface(window)
+            .map_err(|e| GpuError::Device(format!("cannot draw into the window: {e}")))?;
+        let context = Self::open(&instance, Some(&surface))?;
+        Ok((context, surface))
+    }
+
+    fn open(
+        instance: &wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Arc<Self>, GpuError> {
         let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-            &instance, None,
+            instance, surface,
         ))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
         let info = adapter.get_info();

@@ -677,12 +677,31 @@ impl GpuSolver {
         self.check_status()
     }
 
+    /// The 16-byte status buffer, for callers that read it back without waiting (see
+    /// [`GpuSolver::judge_status`]).
+    pub fn status_buffer(&self) -> &wgpu::Buffer {
+        &self.status
+    }
+
+    /// Interprets status bytes read back from [`GpuSolver::status_buffer`].
+    pub fn judge_status(&mut self, bytes: &[u8]) -> Result<(), SimError> {
+        self.judge(bytes).map_err(|e| match e {
+            RunError::Sim(e) => e,
+            RunError::Gpu(e) => SimError::Device(e.to_string()),
+        })
+    }
+
     fn check_status(&mut self) -> Result<(), RunError> {
         let bytes = read_back(
             &self.context,
             &[(&self.status, std::mem::size_of::<GpuStatus>() as u64)],
         )?;
-        let status: GpuStatus = bytemuck::pod_read_unaligned(&bytes[0]);
+        self.judge(&bytes[0])
+    }
+
+    fn judge(&mut self, bytes: &[u8]) -> Result<(), RunError> {
+        self.context.take_error()?;
+        let status: GpuStatus = bytemuck::pod_read_unaligned(bytes);
         if status.first_bad_step != GpuStatus::NO_FAILURE {
             self.steps_taken = u64::from(status.first_bad_step);
             return Err(RunError::Sim(SimError::NonFinite {

@@ -47,7 +47,7 @@ pub struct RenderArgs {
     pub allow_unstable: bool,
 }
 
-fn parse_size(text: &str) -> Result<[u32; 2], String> {
+pub fn parse_size(text: &str) -> Result<[u32; 2], String> {
     let (w, h) = text
         .split_once('x')
         .ok_or_else(|| format!("expected WIDTHxHEIGHT, found {text:?}"))?;

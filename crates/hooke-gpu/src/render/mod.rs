@@ -7,11 +7,15 @@ mod camera;
 mod image_file;
 mod offscreen;
 mod offscreen_run;
+mod pick;
+mod readback;
 
 pub use camera::Camera;
 pub use image_file::{Image, ImageError};
 pub use offscreen::OffscreenTarget;
 pub use offscreen_run::{FrameError, OffscreenRun};
+pub use pick::{PickAt, PickedVertex, Picker};
+pub use readback::AsyncReadback;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
@@ -473,7 +477,11 @@ fn texture_coordinates(model: &Model, bounds: &SceneBounds) -> Vec<[f32; 2]> {
 mod tests {
     #[test]
     fn render_shaders_validate() {
-        for (name, source) in [("normals", super::NORMALS), ("scene", super::SCENE)] {
+        for (name, source) in [
+            ("normals", super::NORMALS),
+            ("scene", super::SCENE),
+            ("pick", super::pick::PICK),
+        ] {
             let module = naga::front::wgsl::parse_str(source)
                 .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
             naga::valid::Validator::new(

@@ -1,0 +1,580 @@
+//! `hooke view`: the interactive viewer (winit window, egui panel).
+//!
+//! Each frame is one encoder: the simulation's passes, a pick (only while the mouse asks for
+//! one), the scene render pass drawing from the solver's position buffer, and egui's pass. The
+//! frame loop never waits for the GPU to read anything back: picks and solver status arrive
+//! through non-blocking read-backs a frame or two later.
+
+mod panel;
+mod simulation;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::Args;
+use glam::{Vec2, Vec3};
+use hooke_gpu::GpuContext;
+use hooke_gpu::render::{Camera, Image, PickAt, Picker, RenderOptions, SceneRenderer};
+use hooke_gpu::wgpu;
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{Key, NamedKey};
+use winit::window::{Window, WindowId};
+
+use crate::scene_loading::load_scene;
+use simulation::Simulation;
+
+#[derive(Debug, Args)]
+pub struct ViewArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Close after this many frames (for scripted runs).
+    #[arg(long)]
+    pub frames: Option<u64>,
+    /// Save the last frame's window contents as PNG (with --frames).
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Window size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x800", value_parser = crate::commands::render::parse_size)]
+    pub size: [u32; 2],
+    /// Run even if dt exceeds the stability bound.
+    #[arg(long)]
+    pub allow_unstable: bool,
+}
+
+pub fn run(args: ViewArgs) -> anyhow::Result<()> {
+    let scene = load_scene(&args.scene, args.allow_unstable)?;
+    let event_loop = EventLoop::new()
+        .context("cannot open a window (no display?); `hooke render` draws without one")?;
+    let mut app = App {
+        args,
+        scene: Some(scene),
+        viewer: None,
+        error: None,
+    };
+    event_loop.run_app(&mut app).context("window event loop")?;
+    match app.error {
+        Some(error) => Err(error),
+        None => Ok(()),
+    }
+}
+
+struct App {
+    args: ViewArgs,
+    scene: Option<hooke_core::scene::Scene>,
+    viewer: Option<Viewer>,
+    error: Option<anyhow::Error>,
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.viewer.is_some() {
+            return;
+        }
+        let Some(scene) = self.scene.take() else {
+            return;
+        };
+        match Viewer::new(event_loop, scene, &self.args) {
+            Ok(viewer) => self.viewer = Some(viewer),
+            Err(error) => {
+                self.error = Some(error);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(viewer) = &mut self.viewer else {
+            return;
+        };
+        match viewer.handle(&event) {
+            Ok(true) => {}
+            Ok(false) => event_loop.exit(),
+            Err(error) => {
+                self.error = Some(error);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        if let Some(viewer) = &self.viewer {
+            viewer.window.request_redraw();
+        }
+    }
+}
+
+/// What the left mouse button is doing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Gesture {
+    Idle,
+    /// Pressed; waiting for the GPU to say whether the cloth is under the cursor. Motion so far.
+    Picking(Vec2),
+    Orbiting,
+    Grabbing {
+        vertex: u32,
+        anchor: Vec3,
+    },
+    Panning,
+}
+
+struct Viewer {
+    window: Arc<Window>,
+    context: Arc<GpuContext>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    renderer: SceneRenderer,
+    picker: Picker,
+    camera: Camera,
+    options: RenderOptions,
+    egui: egui::Context,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+    simulation: Simulation,
+    gesture: Gesture,
+    pick_requested: bool,
+    cursor: Vec2,
+    frames: u64,
+    frame_limit: Option<u64>,
+    screenshot: Option<PathBuf>,
+    last_frame: Instant,
+    frame_seconds: f64,
+}
+
+impl Viewer {
+    fn new(
+        event_loop: &ActiveEventLoop,
+        scene: hooke_core::scene::Scene,
+        args: &ViewArgs,
+    ) -> anyhow::Result<Self> {
+        let attributes = Window::default_attributes()
+            .with_title(format!("hooke: {}", scene.name))
+            .with_inner_size(winit::dpi::PhysicalSize::new(args.size[0], args.size[1]));
+        let window = Arc::new(
+            event_loop
+                .create_window(attributes)
+                .context("creating the window")?,
+        );
+        let (context, surface) =
+            GpuContext::for_window(Arc::clone(&window)).context("opening the GPU")?;
+        eprintln!("gpu: {}", context.describe());
+        let size = window.inner_size();
+        let capabilities = surface.get_capabilities(&context.adapter);
+        let format = capabilities
+            .formats
+            .iter()
+            .copied()
+            .find(wgpu::TextureFormat::is_srgb)
+            .or_else(|| capabilities.formats.first().copied())
+            .context("the window's surface offers no format")?;
+        // Copying the surface lets --screenshot save exactly what the window shows.
+        let copyable = capabilities.usages.contains(wgpu::TextureUsages::COPY_SRC);
+        let config = wgpu::SurfaceConfiguration {
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | if copyable {
+                    wgpu::TextureUsages::COPY_SRC
+                } else {
+                    wgpu::TextureUsages::empty()
+                },
+            format,
+            width: size.width.max(1),
+            height: size.height.max(1),
+            present_mode: wgpu::PresentMode::AutoVsync,
+            desired_maximum_frame_latency: 2,
+            alpha_mode: capabilities
+                .alpha_modes
+                .first()
+                .copied()
+                .unwrap_or(wgpu::CompositeAlphaMode::Auto),
+            view_formats: vec![],
+            color_space: wgpu::SurfaceColorSpace::Auto,
+        };
+        surface.configure(&context.device, &config);
+        let simulation = Simulation::new(Arc::clone(&context), scene)?;
+        let renderer = SceneRenderer::new(&context, simulation.model(), format)?;
+        let picker = Picker::new(&context, simulation.model().vertex_count() as u32)?;
+        let egui = egui::Context::default();
+        let egui_state = egui_winit::State::new(
+            egui.clone(),
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(context.device.limits().max_texture_dimension_2d as usize),
+        );
+        let egui_renderer = egui_wgpu::Renderer::new(
+            &context.device,
+            format,
+            egui_wgpu::RendererOptions::default(),
+        );
+        let mut viewer = Self {
+            camera: Camera::framing(&renderer.bounds()),
+            options: RenderOptions::default(),
+            window,
+            context,
+            surface,
+            config,
+            renderer,
+            picker,
+            egui,
+            egui_state,
+            egui_renderer,
+            simulation,
+            gesture: Gesture::Idle,
+            pick_requested: false,
+            cursor: Vec2::ZERO,
+            frames: 0,
+            frame_limit: args.frames,
+            screenshot: args.screenshot.clone(),
+            last_frame: Instant::now(),
+            frame_seconds: 1.0 / 60.0,
+        };
+        viewer.simulation.apply_params();
+        Ok(viewer)
+    }
+
+    /// Handles one window event; `Ok(false)` closes the viewer.
+    fn handle(&mut self, event: &WindowEvent) -> anyhow::Result<bool> {
+        let response = self.egui_state.on_window_event(&self.window, event);
+        match event {
+            WindowEvent::CloseRequested => return Ok(false),
+            WindowEvent::Resized(size) => {
+                self.config.width = size.width.max(1);
+                self.config.height = size.height.max(1);
+                self.surface.configure(&self.context.device, &self.config);
+            }
+            WindowEvent::RedrawRequested => return self.frame(),
+            _ if response.consumed => {}
+            WindowEvent::CursorMoved { position, .. } => {
+                let cursor = Vec2::new(position.x as f32, position.y as f32);
+                self.pointer_moved(cursor - self.cursor);
+                self.cursor = cursor;
+            }
+            WindowEvent::MouseInput { state, button, .. } => self.mouse_button(*state, *button),
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => *y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.camera.zoom(0.9f32.powf(lines));
+            }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                match &event.logical_key {
+                    Key::Named(NamedKey::Space) => self.simulation.paused = !self.simulation.paused,
+                    Key::Named(NamedKey::Escape) => return Ok(false),
+                    Key::Character(c) if c == "r" => self.simulation.reset(),
+                    Key::Character(c) if c == "s" => self.simulation.step_once = true,
+                    Key::Character(c) if c == "w" => {
+                        self.options.wireframe = !self.options.wireframe
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+        Ok(true)
+    }
+
+    fn size(&self) -> [u32; 2] {
+        [self.config.width, self.config.height]
+    }
+
+    fn cursor_ndc(&self) -> Vec2 {
+        let [w, h] = self.size();
+        Vec2::new(
+            2.0 * self.cursor.x / w as f32 - 1.0,
+            1.0 - 2.0 * self.cursor.y / h as f32,
+        )
+    }
+
+    fn mouse_button(&mut self, state: ElementState, button: MouseButton) {
+        match (button, state) {
+            (MouseButton::Left, ElementState::Pressed) => {
+                self.gesture = Gesture::Picking(Vec2::ZERO);
+                self.pick_requested = true;
+            }
+            (MouseButton::Right | MouseButton::Middle, ElementState::Pressed) => {
+                self.gesture = Gesture::Panning
+            }
+            (_, ElementState::Pressed) => {}
+            (_, ElementState::Released) => {
+                if matches!(self.gesture, Gesture::Grabbing { .. }) {
+                    self.simulation.grab = None;
+                    self.simulation.apply_params();
+                }
+                self.gesture = Gesture::Idle;
+            }
+        }
+    }
+
+    fn pointer_moved(&mut self, delta: Vec2) {
+        let radians = delta * 0.008;
+        match &mut self.gesture {
+            Gesture::Picking(pending) => *pending += delta,
+            Gesture::Orbiting => self.camera.orbit(radians),
+            Gesture::Panning => self.camera.pan(delta * 0.0015),
+            Gesture::Grabbing { vertex, anchor } => {
+                let (vertex, anchor) = (*vertex, *anchor);
+                self.drag_to(vertex, anchor);
+            }
+            Gesture::Idle => {}
+        }
+    }
+
+    /// Moves the grab target to where the cursor ray meets the plane through the grabbed point
+    /// facing the camera.
+    fn drag_to(&mut self, vertex: u32, anchor: Vec3) {
+        let [w, h] = self.size();
+        let (origin, direction) = self
+            .camera
+            .ray(self.cursor_ndc(), w as f32 / h.max(1) as f32);
+        let normal = (self.camera.target - self.camera.eye()).normalize_or(Vec3::NEG_Z);
+        let denominator = direction.dot(normal);
+        if denominator.abs() > 1e-6 {
+            let t = (anchor - origin).dot(normal) / denominator;
+            self.simulation.grab = Some((vertex, origin + direction * t));
+            self.simulation.apply_params();
+        }
+    }
+
+    fn frame(&mut self) -> anyhow::Result<bool> {
+        let now = Instant::now();
+        self.frame_seconds =
+            0.9 * self.frame_seconds + 0.1 * now.duration_since(self.last_frame).as_secs_f64();
+        self.last_frame = now;
+        if let Some(answer) = self.picker.poll(&self.context)
+            && let Gesture::Picking(pending) = self.gesture
+        {
+            self.gesture = match answer {
+                Some(hit) => {
+                    self.simulation.grab = Some((hit.vertex, hit.position));
+                    self.simulation.apply_params();
+                    Gesture::Grabbing {
+                        vertex: hit.vertex,
+                        anchor: hit.position,
+                    }
+                }
+                None => {
+                    self.camera.orbit(pending * 0.008);
+                    Gesture::Orbiting
+                }
+            };
+        }
+        let surface_texture = match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(true);
+            }
+            _ => {
+                self.surface.configure(&self.context.device, &self.config);
+                return Ok(true);
+            }
+        };
+        let view = surface_texture.texture.create_view(&Default::default());
+        let mut encoder =
+            self.context
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("viewer frame"),
+                });
+        self.simulation.encode_frame(&mut encoder);
+        let size = self.size();
+        let mut picking = false;
+        if self.pick_requested {
+            picking = self.picker.encode(
+                &self.context,
+                &mut encoder,
+                self.simulation.positions(),
+                &self.camera,
+                PickAt {
+                    cursor: self.cursor_ndc(),
+                    size,
+                    radius_pixels: 12.0,
+                },
+            );
+            self.pick_requested = !picking;
+        }
+        self.options.wind = self.simulation.params().wind.map(|w| w.velocity.as_vec3());
+        self.renderer.encode(
+            &self.context,
+            &mut encoder,
+            self.simulation.positions(),
+            &view,
+            size,
+            &self.camera,
+            &self.options,
+        );
+        self.encode_panel(&mut encoder, &view)?;
+        let last = self
+            .frame_limit
+            .is_some_and(|limit| self.frames + 1 >= limit);
+        let screenshot = match (&self.screenshot, last) {
+            (Some(_), true) => Some(self.encode_screenshot(&mut encoder, &surface_texture.texture)),
+            _ => None,
+        };
+        self.context.queue.submit([encoder.finish()]);
+        if picking {
+            self.picker.submitted();
+        }
+        self.simulation.after_submit();
+        if let (Some((buffer, padded_row)), Some(path)) = (screenshot, &self.screenshot) {
+            self.save_screenshot(&buffer, padded_row, path)?;
+        }
+        self.context.queue.present(surface_texture);
+        self.frames += 1;
+        Ok(!last)
+    }
+
+    fn encode_panel(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        view: &wgpu::TextureView,
+    ) -> anyhow::Result<()> {
+        let input = self.egui_state.take_egui_input(&self.window);
+        let fps = 1.0 / self.frame_seconds.max(1e-6);
+        let bounds = self.renderer.bounds();
+        let egui = self.egui.clone();
+        let output = egui.run_ui(input, |ui| {
+            panel::show(
+                ui,
+                &mut self.simulation,
+                &mut self.options,
+                &mut self.camera,
+                &bounds,
+                fps,
+            );
+        });
+        self.egui_state
+            .handle_platform_output(&self.window, output.platform_output);
+        let jobs = self.egui.tessellate(output.shapes, output.pixels_per_point);
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: self.size(),
+            pixels_per_point: output.pixels_per_point,
+        };
+        for (id, deltas) in &output.textures_delta.set {
+            for delta in deltas {
+                self.egui_renderer.update_texture(
+                    &self.context.device,
+                    &self.context.queue,
+                    *id,
+                    delta,
+                );
+            }
+        }
+        self.egui_renderer.update_buffers(
+            &self.context.device,
+            &self.context.queue,
+            encoder,
+            &jobs,
+            &screen,
+        );
+        {
+            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("panel"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            self.egui_renderer
+                .render(&mut pass.forget_lifetime(), &jobs, &screen);
+        }
+        for id in &output.textures_delta.free {
+            self.egui_renderer.free_texture(id);
+        }
+        Ok(())
+    }
+
+    /// Records a copy of the window's image; returns the buffer and its padded row length.
+    fn encode_screenshot(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+    ) -> (wgpu::Buffer, u32) {
+        let [w, h] = self.size();
+        let padded_row = (4 * w).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let buffer = self.context.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("screenshot"),
+            size: u64::from(padded_row) * u64::from(h),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        if self.config.usage.contains(wgpu::TextureUsages::COPY_SRC) {
+            encoder.copy_texture_to_buffer(
+                texture.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &buffer,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(padded_row),
+                        rows_per_image: Some(h),
+                    },
+                },
+                wgpu::Extent3d {
+                    width: w,
+                    height: h,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        (buffer, padded_row)
+    }
+
+    /// Saves the copied window image (the last frame only; this waits for the GPU).
+    fn save_screenshot(
+        &self,
+        buffer: &wgpu::Buffer,
+        padded_row: u32,
+        path: &std::path::Path,
+    ) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.config.usage.contains(wgpu::TextureUsages::COPY_SRC),
+            "this window's surface cannot be copied; use `hooke render` for images"
+        );
+        let (sender, receiver) = std::sync::mpsc::channel();
+        buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = sender.send(r);
+        });
+        self.context
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())?;
+        receiver.recv()??;
+        let [w, h] = self.size();
+        let bgra = matches!(
+            self.config.format,
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+        );
+        let rgba: Vec<u8> = {
+            let view = buffer.slice(..).get_mapped_range()?;
+            view.chunks(padded_row as usize)
+                .flat_map(|row| {
+                    row[..4 * w as usize].chunks(4).flat_map(|p| {
+                        if bgra {
+                            [p[2], p[1], p[0], 255]
+                        } else {
+                            [p[0], p[1], p[2], 255]
+                        }
+                    })
+                })
+                .collect()
+        };
+        buffer.unmap();
+        Image { size: [w, h], rgba }.save_png(path)?;
+        eprintln!("screenshot written to {}", path.display());
+        Ok(())
+    }
+}

@@ -1,0 +1,141 @@
+//! The viewer's side panel: solver, parameters, display options and statistics.
+
+use hooke_gpu::render::{Camera, RenderOptions, SceneBounds};
+
+use super::simulation::Simulation;
+
+pub fn show(
+    root: &mut egui::Ui,
+    simulation: &mut Simulation,
+    options: &mut RenderOptions,
+    camera: &mut Camera,
+    bounds: &SceneBounds,
+    fps: f64,
+) {
+    egui::Panel::left("controls")
+        .resizable(false)
+        .show(root, |ui| {
+            ui.heading("hooke");
+            ui.label("left-drag: grab the cloth, or orbit; right-drag: pan; wheel: zoom");
+            ui.separator();
+
+            let mut choice = simulation.choice;
+            egui::ComboBox::from_label("solver")
+                .selected_text(choice.label())
+                .show_ui(ui, |ui| {
+                    for c in simulation.choices.clone() {
+                        ui.selectable_value(&mut choice, c, c.label());
+                    }
+                });
+            if choice != simulation.choice {
+                simulation.switch(choice);
+            }
+
+            ui.horizontal(|ui| {
+                let label = if simulation.paused { "Resume" } else { "Pause" };
+                if ui.button(label).clicked() {
+                    simulation.paused = !simulation.paused;
+                }
+                if ui.button("Step").clicked() {
+                    simulation.step_once = true;
+                }
+                if ui.button("Reset").clicked() {
+                    simulation.reset();
+                }
+                if ui.button("Frame camera").clicked() {
+                    *camera = Camera::framing(bounds);
+                }
+            });
+            ui.separator();
+
+            let mut changed = false;
+            if ui
+                .add(
+                    egui::Slider::new(&mut simulation.stiffness_scale, 0.1..=10.0)
+                        .logarithmic(true)
+                        .text("stiffness x"),
+                )
+                .changed()
+            {
+                simulation.stiffness_changed = true;
+            }
+            changed |= ui
+                .add(
+                    egui::Slider::new(&mut simulation.damping, 0.0..=0.01).text("damping c (kg/s)"),
+                )
+                .changed();
+            changed |= ui
+                .add(
+                    egui::Slider::new(&mut simulation.dt_fraction, 0.05..=1.0)
+                        .text("dt / stable dt"),
+                )
+                .changed();
+            ui.label(format!(
+                "dt = {:.3e} s (stable up to {:.3e} s)",
+                simulation.dt(),
+                simulation.max_stable_dt
+            ));
+            ui.add(
+                egui::Slider::new(&mut simulation.steps_per_frame, 1..=200).text("steps per frame"),
+            );
+            changed |= ui
+                .add(
+                    egui::Slider::new(&mut simulation.gravity_y, -20.0..=0.0)
+                        .text("gravity y (m/s^2)"),
+                )
+                .changed();
+            ui.separator();
+            changed |= ui.checkbox(&mut simulation.wind_enabled, "wind").changed();
+            ui.add_enabled_ui(simulation.wind_enabled, |ui| {
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut simulation.wind_heading_degrees, -180.0..=180.0)
+                            .text("heading (deg)"),
+                    )
+                    .changed();
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut simulation.wind_speed, 0.0..=20.0)
+                            .text("speed (m/s)"),
+                    )
+                    .changed();
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut simulation.wind_coefficient, 0.0..=5.0)
+                            .text("coefficient"),
+                    )
+                    .changed();
+            });
+            if changed {
+                simulation.apply_params();
+            }
+            ui.separator();
+            ui.checkbox(&mut options.wireframe, "springs (wireframe)");
+            ui.checkbox(&mut options.color_by_strain, "colour by strain");
+            ui.checkbox(&mut options.show_pins, "mark pinned vertices");
+            ui.separator();
+
+            ui.label(format!(
+                "{fps:.0} fps, {:.0} steps/s",
+                fps * f64::from(simulation.steps_per_frame)
+            ));
+            ui.label(format!("step {}", simulation.steps_taken()));
+            if ui.button("Measure GPU phases").clicked() {
+                simulation.measure_phases();
+            }
+            if let Some(p) = simulation.phases {
+                let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+                ui.label(format!(
+                    "force {:.3} ms, accumulation {}, integration {:.3} ms ({:?})",
+                    ms(p.force_calculation),
+                    p.force_accumulation
+                        .map_or("-".to_owned(), |a| format!("{:.3} ms", ms(a))),
+                    ms(p.integration),
+                    p.source
+                ));
+            }
+            if let Some(message) = &simulation.message {
+                ui.colored_label(egui::Color32::RED, message);
+            }
+        });
+}

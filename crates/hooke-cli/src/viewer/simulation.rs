@@ -1,0 +1,325 @@
+//! What the viewer simulates and how the panel changes it: the solver choice, live parameters,
+//! the grabbed vertex, and status checks that never make a frame wait.
+
+use std::sync::Arc;
+
+use glam::{DVec3, Vec3};
+use hooke_core::scene::Scene;
+use hooke_core::stability::stability_limit;
+use hooke_core::{Drag, Model, SimParams, Solver, State, Wind};
+use hooke_cpu::{CpuOptions, CpuSolver, Method};
+use hooke_gpu::render::AsyncReadback;
+use hooke_gpu::wgpu;
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod, GpuPhaseTimes, GpuSolver};
+
+/// Which solver runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Choice {
+    Gpu(GpuMethod),
+    Cpu(Method),
+}
+
+impl Choice {
+    pub fn label(self) -> String {
+        match self {
+            Self::Gpu(m) => format!("gpu {}", m.name()),
+            Self::Cpu(m) => format!("cpu {} (uploads positions each frame)", m.name()),
+        }
+    }
+}
+
+enum Active {
+    Gpu(Box<GpuSolver>),
+    /// The CPU solver's positions are copied into this vec4 buffer every frame for drawing.
+    Cpu(Box<CpuSolver>, wgpu::Buffer),
+}
+
+/// Steps between non-blocking status checks of the GPU solver.
+const STATUS_EVERY: u64 = 30;
+
+pub struct Simulation {
+    context: Arc<GpuContext>,
+    scene: Scene,
+    model: Model,
+    active: Active,
+    pub choice: Choice,
+    pub choices: Vec<Choice>,
+    pub stiffness_scale: f64,
+    /// Set by the panel; the model is rebuilt before the next frame's steps.
+    pub stiffness_changed: bool,
+    pub damping: f64,
+    /// dt as a fraction of the stability bound.
+    pub dt_fraction: f64,
+    pub max_stable_dt: f64,
+    pub steps_per_frame: u32,
+    pub gravity_y: f64,
+    pub wind_enabled: bool,
+    pub wind_heading_degrees: f64,
+    pub wind_speed: f64,
+    pub wind_coefficient: f64,
+    pub paused: bool,
+    pub step_once: bool,
+    pub grab: Option<(u32, Vec3)>,
+    pub message: Option<String>,
+    pub phases: Option<GpuPhaseTimes>,
+    status: AsyncReadback,
+    frames_since_status: u64,
+}
+
+impl Simulation {
+    pub fn new(context: Arc<GpuContext>, scene: Scene) -> anyhow::Result<Self> {
+        let gpu_methods = GpuMethod::all().into_iter().filter(|m| match m {
+            GpuMethod::Scatter(Accumulation::AtomicF32) => {
+                context.has(wgpu::Features::SHADER_FLOAT32_ATOMIC)
+            }
+            GpuMethod::Scatter(Accumulation::BlendR32f) => {
+                context.has(wgpu::Features::FLOAT32_BLENDABLE)
+            }
+            _ => true,
+        });
+        let choices: Vec<Choice> = gpu_methods
+            .map(Choice::Gpu)
+            .chain(Method::ALL.map(Choice::Cpu))
+            .collect();
+        let choice = Choice::Gpu(GpuMethod::Scatter(Accumulation::Incidence));
+        let wind = scene.params.wind;
+        let (heading, speed) = wind.map_or((0.0, 3.0), |w| {
+            (
+                w.velocity.z.atan2(w.velocity.x).to_degrees(),
+                w.velocity.length(),
+            )
+        });
+        let active = build(&context, choice, &scene.model, &scene.params)?;
+        let status = AsyncReadback::new(&context, "status read-back", 16);
+        Ok(Self {
+            max_stable_dt: scene.max_stable_dt,
+            dt_fraction: (scene.params.dt / scene.max_stable_dt).min(1.0),
+            damping: scene.params.damping,
+            gravity_y: scene.params.gravity.y,
+            wind_enabled: wind.is_some(),
+            wind_heading_degrees: heading,
+            wind_speed: speed,
+            wind_coefficient: wind.map_or(0.5, |w| w.coefficient),
+            stiffness_scale: 1.0,
+            stiffness_changed: false,
+            steps_per_frame: 10,
+            model: scene.model.clone(),
+            scene,
+            active,
+            choice,
+            choices,
+            context,
+            paused: false,
+            step_once: false,
+            grab: None,
+            message: None,
+            phases: None,
+            status,
+            frames_since_status: 0,
+        })
+    }
+
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    pub fn dt(&self) -> f64 {
+        self.dt_fraction * self.max_stable_dt
+    }
+
+    pub fn steps_taken(&self) -> u64 {
+        self.solver().steps_taken()
+    }
+
+    fn solver(&self) -> &dyn Solver {
+        match &self.active {
+            Active::Gpu(s) => s.as_ref(),
+            Active::Cpu(s, _) => s.as_ref(),
+        }
+    }
+
+    fn solver_mut(&mut self) -> &mut dyn Solver {
+        match &mut self.active {
+            Active::Gpu(s) => s.as_mut(),
+            Active::Cpu(s, _) => s.as_mut(),
+        }
+    }
+
+    /// The buffer the renderer draws: the GPU solver's own positions, or the CPU upload.
+    pub fn positions(&self) -> &wgpu::Buffer {
+        match &self.active {
+            Active::Gpu(s) => s.current_positions(),
+            Active::Cpu(_, buffer) => buffer,
+        }
+    }
+
+    /// The parameters the controls describe.
+    pub fn params(&self) -> SimParams {
+        let heading = self.wind_heading_degrees.to_radians();
+        let mass = |v: u32| self.model.masses[v as usize];
+        SimParams {
+            dt: self.dt(),
+            damping: self.damping,
+            gravity: DVec3::new(0.0, self.gravity_y, 0.0),
+            wind: self.wind_enabled.then(|| Wind {
+                velocity: DVec3::new(heading.cos(), 0.0, heading.sin()) * self.wind_speed,
+                coefficient: self.wind_coefficient,
+            }),
+            point_forces: self.scene.params.point_forces.clone(),
+            drags: self
+                .grab
+                .map(|(vertex, target)| Drag {
+                    vertices: vec![vertex],
+                    target: target.as_dvec3(),
+                    // Stiff enough to lead the cloth, soft enough to stay stable: it adds a fifth
+                    // of the stability budget to the grabbed vertex.
+                    stiffness: 0.2 * mass(vertex) / (self.dt() * self.dt()),
+                })
+                .into_iter()
+                .chain(self.scene.params.drags.iter().cloned())
+                .collect(),
+        }
+    }
+
+    /// Sends the controls' parameters to the solver.
+    pub fn apply_params(&mut self) {
+        let params = self.params();
+        self.solver_mut().set_params(&params);
+    }
+
+    /// Rebuilds the model (after a stiffness change) and the solver, keeping the state.
+    pub fn rebuild(&mut self) {
+        let state = self.solver().read_state();
+        self.model = self.scene.model.clone();
+        for k in &mut self.model.stiffnesses {
+            *k *= self.stiffness_scale;
+        }
+        self.max_stable_dt = stability_limit(&self.model, self.damping).max_dt;
+        self.replace_solver(self.choice, Some(state));
+    }
+
+    pub fn switch(&mut self, choice: Choice) {
+        let state = self.solver().read_state();
+        self.replace_solver(choice, Some(state));
+    }
+
+    fn replace_solver(&mut self, choice: Choice, state: Option<State>) {
+        match build(&self.context, choice, &self.model, &self.params()) {
+            Ok(mut active) => {
+                if let Some(state) = state {
+                    match &mut active {
+                        Active::Gpu(s) => s.write_state(&state),
+                        Active::Cpu(s, _) => s.write_state(&state),
+                    }
+                }
+                self.active = active;
+                self.choice = choice;
+                self.message = None;
+            }
+            Err(error) => self.message = Some(format!("{}: {error:#}", choice.label())),
+        }
+    }
+
+    pub fn reset(&mut self) {
+        let rest = State::at_rest(self.model.initial_positions.clone());
+        self.solver_mut().write_state(&rest);
+        self.message = None;
+        self.paused = false;
+    }
+
+    /// Records this frame's steps. GPU steps go into `encoder`; CPU steps run now and their
+    /// positions are uploaded for drawing.
+    pub fn encode_frame(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        if std::mem::take(&mut self.stiffness_changed) {
+            self.rebuild();
+        }
+        let steps = if self.paused && !self.step_once {
+            0
+        } else if self.step_once {
+            1
+        } else {
+            self.steps_per_frame
+        };
+        self.step_once = false;
+        match &mut self.active {
+            Active::Gpu(solver) => {
+                solver.encode_steps(encoder, steps);
+                self.frames_since_status += u64::from(steps);
+                if self.frames_since_status >= STATUS_EVERY
+                    && self.status.encode_copy(encoder, solver.status_buffer())
+                {
+                    self.frames_since_status = 0;
+                }
+            }
+            Active::Cpu(solver, buffer) => {
+                if let Err(error) = solver.step(steps) {
+                    self.message = Some(error.to_string());
+                    self.paused = true;
+                }
+                let positions: Vec<[f32; 4]> = solver
+                    .read_state()
+                    .positions
+                    .iter()
+                    .map(|p| {
+                        let p = p.as_vec3();
+                        [p.x, p.y, p.z, 1.0]
+                    })
+                    .collect();
+                self.context
+                    .queue
+                    .write_buffer(buffer, 0, bytemuck::cast_slice(&positions));
+            }
+        }
+    }
+
+    /// After submission: asks for the status read-back and judges one that has arrived.
+    pub fn after_submit(&mut self) {
+        self.status.request();
+        if let Some(bytes) = self.status.try_take(&self.context)
+            && let Active::Gpu(solver) = &mut self.active
+            && let Err(error) = solver.judge_status(&bytes)
+        {
+            self.message = Some(format!("{error} (press Reset)"));
+            self.paused = true;
+        }
+    }
+
+    /// Times one step's phases (waits for the GPU once; a user action, not part of the loop).
+    pub fn measure_phases(&mut self) {
+        if let Active::Gpu(solver) = &mut self.active {
+            match solver.step_timed() {
+                Ok(times) => self.phases = Some(times),
+                Err(error) => self.message = Some(error.to_string()),
+            }
+        }
+    }
+}
+
+fn build(
+    context: &Arc<GpuContext>,
+    choice: Choice,
+    model: &Model,
+    params: &SimParams,
+) -> anyhow::Result<Active> {
+    Ok(match choice {
+        Choice::Gpu(method) => Active::Gpu(Box::new(GpuSolver::new(
+            Arc::clone(context),
+            model,
+            params,
+            method,
+        )?)),
+        Choice::Cpu(method) => {
+            let options = CpuOptions {
+                method,
+                ..Default::default()
+            };
+            let buffer = context.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("cpu positions upload"),
+                size: 16 * model.vertex_count().max(1) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            Active::Cpu(Box::new(CpuSolver::new(model, params, options)?), buffer)
+        }
+    })
+}
