@@ -473,3 +473,59 @@ fn render_to_mp4_uses_ffmpeg_or_says_it_is_missing() {
         );
     }
 }
+
+#[test]
+fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
+    if !gpu_available() {
+        return;
+    }
+    let has_xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
+    if !has_xvfb {
+        // CI installs Xvfb through ./run test, so there the smoke test must run.
+        assert!(
+            std::env::var("CI").is_err(),
+            "CI=true but xvfb-run is missing"
+        );
+        eprintln!("skipping viewer smoke test: no xvfb-run");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
+    let shot = dir.path().join("viewer.png");
+    let result = Command::new("xvfb-run")
+        .args([
+            "-a",
+            "-s",
+            "-screen 0 1024x768x24",
+            env!("CARGO_BIN_EXE_hooke"),
+            "view",
+        ])
+        .args([
+            path_str(&scene),
+            "--frames",
+            "30",
+            "--size",
+            "640x400",
+            "--screenshot",
+            path_str(&shot),
+        ])
+        .output()
+        .expect("xvfb-run runs");
+    let stderr = text(&result.stderr);
+    assert!(result.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("30 frames") && stderr.contains("0 blocking GPU read-backs"),
+        "{stderr}"
+    );
+    let image = hooke_gpu::render::Image::load_png(&shot).expect("screenshot");
+    assert_eq!(image.size, [640, 400]);
+    // The checker's red squares and the pin markers: clearly red pixels mean cloth in view.
+    let red = image
+        .rgba
+        .chunks(4)
+        .filter(|p| {
+            i32::from(p[0]) > i32::from(p[1]) + 50 && i32::from(p[0]) > i32::from(p[2]) + 50
+        })
+        .count();
+    assert!(red > image.rgba.len() / 4 / 200, "only {red} cloth pixels");
+}

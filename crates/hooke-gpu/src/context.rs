@@ -51,6 +51,8 @@ pub struct GpuContext {
     /// The optional features (of [`OPTIONAL_FEATURES`]) this device has.
     pub features: wgpu::Features,
     errors: Arc<Mutex<Vec<String>>>,
+    /// Read-backs that waited for the GPU (see [`GpuContext::blocking_reads`]).
+    blocking_reads: std::sync::atomic::AtomicU64,
 }
 
 fn instance() -> wgpu::Instance {
@@ -142,6 +144,7 @@ impl GpuContext {
             info,
             features,
             errors,
+            blocking_reads: Default::default(),
         }))
     }
 
@@ -185,6 +188,19 @@ impl GpuContext {
             }
         })
         .collect()
+    }
+
+    /// How many read-backs so far waited for the GPU. An interactive frame loop must not add
+    /// to it; the viewer reports it and its smoke test checks it.
+    pub fn blocking_reads(&self) -> u64 {
+        self.blocking_reads
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Counts a read-back that waits for the GPU.
+    pub fn note_blocking_read(&self) {
+        self.blocking_reads
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Records an error to be returned by the next [`GpuContext::take_error`].

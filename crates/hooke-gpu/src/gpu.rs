@@ -147,6 +147,7 @@ pub fn read_back(
     context: &GpuContext,
     sources: &[(&wgpu::Buffer, u64)],
 ) -> Result<Vec<Vec<u8>>, GpuError> {
+    context.note_blocking_read();
     let total: u64 = sources.iter().map(|(_, bytes)| *bytes).sum();
     let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("read-back staging"),

@@ -274,3 +274,58 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
         assert_eq!(wall.steps_taken(), 6);
     }
 }
+
+#[test]
+fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
+    use hooke_gpu::render::{Camera, PickAt, Picker, SceneBounds};
+    let Some(context) = context() else { return };
+    let scene = benchmark_scene(MeshSection::unit_grid(8, 8), 64);
+    let solver = GpuSolver::new(
+        Arc::clone(&context),
+        &scene.model,
+        &scene.params,
+        GpuMethod::Gather,
+    )
+    .expect("solver");
+    let camera = Camera::framing(&SceneBounds::of(&scene.model));
+    let picker = Picker::new(&context, 64).expect("picker");
+    let size = [400, 300];
+    let pick = |cursor: glam::Vec2| {
+        let mut encoder = context.device.create_command_encoder(&Default::default());
+        let at = PickAt {
+            cursor,
+            size,
+            radius_pixels: 6.0,
+        };
+        assert!(picker.encode(
+            &context,
+            &mut encoder,
+            solver.current_positions(),
+            &camera,
+            at
+        ));
+        context.queue.submit([encoder.finish()]);
+        picker.submitted();
+        loop {
+            if let Some(answer) = picker.poll(&context) {
+                return answer;
+            }
+            let _ = context
+                .device
+                .poll(hooke_gpu::wgpu::PollType::wait_indefinitely());
+        }
+    };
+    let aspect = size[0] as f32 / size[1] as f32;
+    for vertex in [0u32, 27, 63] {
+        let p = scene.model.initial_positions[vertex as usize].as_vec3();
+        let ndc = camera.view_projection(aspect).project_point3(p).truncate();
+        let hit = pick(ndc).expect("a vertex under the cursor");
+        assert_eq!(hit.vertex, vertex);
+        assert!((hit.position - p).length() < 1e-6);
+    }
+    assert_eq!(
+        pick(glam::Vec2::new(0.99, 0.99)),
+        None,
+        "nothing in the corner"
+    );
+}

@@ -142,6 +142,8 @@ struct Viewer {
     screenshot: Option<PathBuf>,
     last_frame: Instant,
     frame_seconds: f64,
+    /// The context's blocking read-back count when the frame loop started.
+    blocking_reads_before: u64,
 }
 
 impl Viewer {
@@ -231,8 +233,10 @@ impl Viewer {
             screenshot: args.screenshot.clone(),
             last_frame: Instant::now(),
             frame_seconds: 1.0 / 60.0,
+            blocking_reads_before: 0,
         };
         viewer.simulation.apply_params();
+        viewer.blocking_reads_before = viewer.context.blocking_reads();
         Ok(viewer)
     }
 
@@ -421,6 +425,14 @@ impl Viewer {
             self.picker.submitted();
         }
         self.simulation.after_submit();
+        if last {
+            eprintln!(
+                "viewer: {} frames, {} steps, {} blocking GPU read-backs in the frame loop",
+                self.frames + 1,
+                self.simulation.steps_taken(),
+                self.context.blocking_reads() - self.blocking_reads_before
+            );
+        }
         if let (Some((buffer, padded_row)), Some(path)) = (screenshot, &self.screenshot) {
             self.save_screenshot(&buffer, padded_row, path)?;
         }
@@ -455,7 +467,8 @@ impl Viewer {
             size_in_pixels: self.size(),
             pixels_per_point: output.pixels_per_point,
         };
-        for (id, deltas) in &output.textures_delta.set {
+        let mut textures = output.textures_delta;
+        for (id, deltas) in &textures.set {
             for delta in deltas {
                 self.egui_renderer.update_texture(
                     &self.context.device,
@@ -492,9 +505,11 @@ impl Viewer {
             self.egui_renderer
                 .render(&mut pass.forget_lifetime(), &jobs, &screen);
         }
-        for id in &output.textures_delta.free {
+        for id in &textures.free {
             self.egui_renderer.free_texture(id);
         }
+        // Applied above; clearing tells egui so.
+        textures.clear();
         Ok(())
     }
 
