@@ -34,6 +34,17 @@ pub fn energy(model: &Model, state: &State, params: &SimParams) -> Energy {
     energy
 }
 
+/// `||a - b|| / ||b||` over all coordinates: how far positions `a` are from reference `b`.
+pub fn relative_l2(a: &[DVec3], b: &[DVec3]) -> f64 {
+    let error: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (*p - *q).length_squared())
+        .sum();
+    let norm: f64 = b.iter().map(|q| q.length_squared()).sum();
+    (error / norm).sqrt()
+}
+
 /// Largest relative elongation `(|l| - |l0|) / |l0|` over all springs, and the spring.
 pub fn max_strain(model: &Model, positions: &[DVec3]) -> (f64, usize) {
     model

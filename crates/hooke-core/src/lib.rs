@@ -15,5 +15,5 @@ mod state;
 
 pub use model::{Adjacency, MassModel, Model, ModelError, ModelOptions, StiffnessModel};
 pub use params::{Drag, PointForce, SimParams, Wind};
-pub use solver::{SimError, Solver};
+pub use solver::{PhaseTimes, SimError, Solver};
 pub use state::State;

@@ -1,6 +1,28 @@
 //! What every solver (f64 reference, CPU, later GPU) offers the rest of hooke.
 
+use std::time::Duration;
+
 use crate::{SimParams, State};
+
+/// Time of each phase of one step, as the paper's Table 2 splits it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseTimes {
+    /// Point forces, drags and wind (zero when there are none).
+    pub external: Duration,
+    pub force_calculation: Duration,
+    /// Scatter only: summing each vertex's spring forces.
+    pub force_accumulation: Option<Duration>,
+    pub integration: Duration,
+}
+
+impl PhaseTimes {
+    pub fn total(&self) -> Duration {
+        self.external
+            + self.force_calculation
+            + self.force_accumulation.unwrap_or_default()
+            + self.integration
+    }
+}
 
 /// The simulation left the range where its numbers mean anything.
 #[derive(Debug, thiserror::Error, PartialEq)]

@@ -413,6 +413,28 @@ pub struct ForceChunk<'a> {
     pub out: [&'a mut [Block]; 3],
 }
 
+/// The vertex pass every step ends with: each slice's net force (from `force_of`, plus the
+/// extra forces), then Verlet. False if a new position in the chunk is not finite.
+#[inline(always)]
+fn integrate_chunk<S: Simd>(
+    simd: S,
+    integrator: &Integrator,
+    current: &Soa,
+    extra: Option<&Soa>,
+    chunk: VertexChunk<'_>,
+    force_of: impl Fn(usize) -> [S::V; 3],
+) -> bool {
+    let mut probe = simd.splat(0.0);
+    for (slice, out) in slice_outputs(chunk) {
+        let force = add_extra(simd, force_of(slice), extra, slice);
+        probe = simd.add(
+            probe,
+            integrate_slice(simd, integrator, current, slice, force, out),
+        );
+    }
+    is_finite_probe(simd, probe)
+}
+
 #[inline(always)]
 fn gather_and_integrate_with<S: Simd>(
     simd: S,
@@ -422,20 +444,9 @@ fn gather_and_integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let mut probe = simd.splat(0.0);
-    for (slice, out) in slice_outputs(chunk) {
-        let force = add_extra(
-            simd,
-            gather_slice(simd, table, current, slice),
-            extra,
-            slice,
-        );
-        probe = simd.add(
-            probe,
-            integrate_slice(simd, integrator, current, slice, force, out),
-        );
-    }
-    is_finite_probe(simd, probe)
+    integrate_chunk(simd, integrator, current, extra, chunk, |slice| {
+        gather_slice(simd, table, current, slice)
+    })
 }
 
 dispatch! {
@@ -460,20 +471,9 @@ fn accumulate_and_integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let mut probe = simd.splat(0.0);
-    for (slice, out) in slice_outputs(chunk) {
-        let force = add_extra(
-            simd,
-            accumulate_slice(simd, table, spring_forces, slice),
-            extra,
-            slice,
-        );
-        probe = simd.add(
-            probe,
-            integrate_slice(simd, integrator, current, slice, force, out),
-        );
-    }
-    is_finite_probe(simd, probe)
+    integrate_chunk(simd, integrator, current, extra, chunk, |slice| {
+        accumulate_slice(simd, table, spring_forces, slice)
+    })
 }
 
 dispatch! {
@@ -589,20 +589,14 @@ fn integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let mut probe = simd.splat(0.0);
-    for (slice, out) in slice_outputs(chunk) {
-        let force = [
-            simd.load(&forces.axis(0)[slice]),
-            simd.load(&forces.axis(1)[slice]),
-            simd.load(&forces.axis(2)[slice]),
-        ];
-        let force = add_extra(simd, force, extra, slice);
-        probe = simd.add(
-            probe,
-            integrate_slice(simd, integrator, current, slice, force, out),
-        );
-    }
-    is_finite_probe(simd, probe)
+    let [fx, fy, fz] = forces.axes();
+    integrate_chunk(simd, integrator, current, extra, chunk, |slice| {
+        [
+            simd.load(&fx[slice]),
+            simd.load(&fy[slice]),
+            simd.load(&fz[slice]),
+        ]
+    })
 }
 
 dispatch! {

@@ -18,9 +18,10 @@ mod lanes;
 pub mod layout;
 pub mod simd;
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use glam::DVec3;
+pub use hooke_core::PhaseTimes;
 use hooke_core::{Model, SimError, SimParams, Solver, State};
 use rayon::prelude::*;
 
@@ -78,26 +79,6 @@ pub enum CpuError {
         threads: usize,
         source: rayon::ThreadPoolBuildError,
     },
-}
-
-/// Wall time of each phase of one step (phases run as separate passes to be measurable).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct PhaseTimes {
-    /// Point forces, drags and wind (zero when there are none).
-    pub external: Duration,
-    pub force_calculation: Duration,
-    /// Scatter only: summing each vertex's spring forces.
-    pub force_accumulation: Option<Duration>,
-    pub integration: Duration,
-}
-
-impl PhaseTimes {
-    pub fn total(&self) -> Duration {
-        self.external
-            + self.force_calculation
-            + self.force_accumulation.unwrap_or_default()
-            + self.integration
-    }
 }
 
 /// Bytes the solver holds, by role (the paper's Table 1 from the real allocations).

@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use glam::DVec3;
+use hooke_core::diagnostics::relative_l2;
 use hooke_core::diagnostics::{energy, pin_reactions};
 use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
@@ -45,17 +46,6 @@ fn benchmark_scene(mesh: MeshSection, vertex_count: u32) -> Scene {
     SceneFile::benchmark(mesh, vertex_count)
         .build(Path::new("bench"), true)
         .expect("benchmark scene builds")
-}
-
-/// `||a - b|| / ||b||` over all coordinates.
-fn relative_l2(a: &[DVec3], b: &[DVec3]) -> f64 {
-    let error: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(p, q)| (*p - *q).length_squared())
-        .sum();
-    let norm: f64 = b.iter().map(|q| q.length_squared()).sum();
-    (error / norm).sqrt()
 }
 
 fn two_masses(pinned: Vec<u32>, stretch: f64, k: f64, m: f64) -> Model {

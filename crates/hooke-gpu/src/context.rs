@@ -198,7 +198,7 @@ impl GpuContext {
     }
 
     /// Counts a read-back that waits for the GPU.
-    pub fn note_blocking_read(&self) {
+    pub(crate) fn note_blocking_read(&self) {
         self.blocking_reads
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }

@@ -142,12 +142,31 @@ pub fn dispatch(
     pass.dispatch_workgroups(x, y, 1);
 }
 
+/// Maps `buffer` for reading, waiting for the GPU (counted in `GpuContext::blocking_reads`).
+pub fn map_blocking(context: &GpuContext, buffer: &wgpu::Buffer) -> Result<(), GpuError> {
+    context.note_blocking_read();
+    let (sender, receiver) = std::sync::mpsc::channel();
+    buffer
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, move |result| {
+            let _ = sender.send(result);
+        });
+    context
+        .device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::ReadBack(e.to_string()))?;
+    receiver
+        .recv()
+        .map_err(|e| GpuError::ReadBack(e.to_string()))?
+        .map_err(|e| GpuError::ReadBack(e.to_string()))?;
+    context.take_error()
+}
+
 /// Copies `bytes` of `source` into a mappable buffer, waits, and returns them.
 pub fn read_back(
     context: &GpuContext,
     sources: &[(&wgpu::Buffer, u64)],
 ) -> Result<Vec<Vec<u8>>, GpuError> {
-    context.note_blocking_read();
     let total: u64 = sources.iter().map(|(_, bytes)| *bytes).sum();
     let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("read-back staging"),
@@ -166,21 +185,7 @@ pub fn read_back(
         offset += bytes;
     }
     context.queue.submit([encoder.finish()]);
-    let (sender, receiver) = std::sync::mpsc::channel();
-    staging
-        .slice(..)
-        .map_async(wgpu::MapMode::Read, move |result| {
-            let _ = sender.send(result);
-        });
-    context
-        .device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::ReadBack(e.to_string()))?;
-    receiver
-        .recv()
-        .map_err(|e| GpuError::ReadBack(e.to_string()))?
-        .map_err(|e| GpuError::ReadBack(e.to_string()))?;
-    context.take_error()?;
+    map_blocking(context, &staging)?;
     let view = staging
         .slice(..)
         .get_mapped_range()

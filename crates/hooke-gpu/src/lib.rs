@@ -2,7 +2,7 @@
 //! stays in GPU memory; reading it back is an explicit call.
 
 mod context;
-mod gpu;
+pub mod gpu;
 mod kernels;
 pub mod layout;
 pub mod render;
@@ -11,7 +11,7 @@ mod solver;
 pub use context::{
     AdapterSummary, GpuContext, GpuError, OPTIONAL_FEATURES, gpu_required, list_adapters,
 };
-pub use solver::{Accumulation, GpuMemory, GpuMethod, GpuPhaseTimes, GpuSolver, TimingSource};
+pub use solver::{Accumulation, GpuMemory, GpuMethod, GpuSolver, TimingSource, positions_to_vec4};
 
 /// The wgpu this crate is built on, for callers that need its types.
 pub use wgpu;

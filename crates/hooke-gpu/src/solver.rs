@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use hooke_core::{Model, SimError, SimParams, Solver, State};
+use hooke_core::{Model, PhaseTimes, SimError, SimParams, Solver, State};
 
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::{self, bind_group, compute_pipeline, dispatch, read_back, storage, zeroed};
@@ -124,25 +124,6 @@ pub enum TimingSource {
     Timestamps,
     /// Wall clock around each phase submitted alone and waited for (no TIMESTAMP_QUERY).
     WallClock,
-}
-
-/// GPU time of each phase of one step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GpuPhaseTimes {
-    pub external: Duration,
-    pub force_calculation: Duration,
-    pub force_accumulation: Option<Duration>,
-    pub integration: Duration,
-    pub source: TimingSource,
-}
-
-impl GpuPhaseTimes {
-    pub fn total(&self) -> Duration {
-        self.external
-            + self.force_calculation
-            + self.force_accumulation.unwrap_or_default()
-            + self.integration
-    }
 }
 
 /// Bytes of GPU memory by role (the paper's Table 1 from the real allocations).
@@ -722,7 +703,7 @@ impl GpuSolver {
     }
 
     /// One step with each phase timed (GPU timestamps, or wall clock when the adapter has none).
-    pub fn step_timed(&mut self) -> Result<GpuPhaseTimes, GpuError> {
+    pub fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), GpuError> {
         let times = match &self.timestamps {
             Some((set, resolved)) => {
                 let mut encoder = self
@@ -741,14 +722,14 @@ impl GpuSolver {
                 let bytes = read_back(&self.context, &[(resolved, u64::from(used) * 8)])?;
                 let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes[0]);
                 let period = f64::from(self.context.queue.get_timestamp_period());
-                let mut times = self.empty_times(TimingSource::Timestamps);
+                let mut times = self.empty_times();
                 for (k, phase) in phases.iter().enumerate() {
                     let nanos = ticks[2 * k + 1].saturating_sub(ticks[2 * k]) as f64 * period;
                     add_phase(&mut times, phase, Duration::from_secs_f64(nanos * 1e-9));
                 }
-                times
+                (times, TimingSource::Timestamps)
             }
-            None => self.step_wall_clock()?,
+            None => (self.step_wall_clock()?, TimingSource::WallClock),
         };
         self.current = 1 - self.current;
         self.steps_taken += 1;
@@ -756,20 +737,19 @@ impl GpuSolver {
         Ok(times)
     }
 
-    fn empty_times(&self, source: TimingSource) -> GpuPhaseTimes {
-        GpuPhaseTimes {
+    fn empty_times(&self) -> PhaseTimes {
+        PhaseTimes {
             external: Duration::ZERO,
             force_calculation: Duration::ZERO,
             force_accumulation: matches!(self.method, GpuMethod::Scatter(_))
                 .then_some(Duration::ZERO),
             integration: Duration::ZERO,
-            source,
         }
     }
 
     /// Fallback timing: the step's passes submitted phase by phase, waiting after each.
-    fn step_wall_clock(&self) -> Result<GpuPhaseTimes, GpuError> {
-        let mut times = self.empty_times(TimingSource::WallClock);
+    fn step_wall_clock(&self) -> Result<PhaseTimes, GpuError> {
+        let mut times = self.empty_times();
         let wait = |start: Instant| -> Result<Duration, GpuError> {
             self.context
                 .device
@@ -858,7 +838,7 @@ impl GpuSolver {
     }
 }
 
-fn add_phase(times: &mut GpuPhaseTimes, phase: &Phase, duration: Duration) {
+fn add_phase(times: &mut PhaseTimes, phase: &Phase, duration: Duration) {
     match phase {
         Phase::External => times.external += duration,
         Phase::Force => times.force_calculation += duration,
@@ -911,6 +891,17 @@ impl RunError {
             Self::Gpu(e) => e,
         }
     }
+}
+
+/// Positions as the `vec4` per vertex (w = 1) that GPU position buffers hold.
+pub fn positions_to_vec4(positions: &[DVec3]) -> Vec<[f32; 4]> {
+    positions
+        .iter()
+        .map(|p| {
+            let p = p.as_vec3();
+            [p.x, p.y, p.z, 1.0]
+        })
+        .collect()
 }
 
 /// Valence-sorted processing order (the paper's layout): slot -> vertex.
@@ -1569,14 +1560,7 @@ impl Solver for GpuSolver {
     }
 
     fn write_state(&mut self, state: &State) {
-        let positions: Vec<[f32; 4]> = state
-            .positions
-            .iter()
-            .map(|p| {
-                let p = p.as_vec3();
-                [p.x, p.y, p.z, 1.0]
-            })
-            .collect();
+        let positions = positions_to_vec4(&state.positions);
         let deltas: Vec<[f32; 4]> = state
             .positions
             .iter()

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use clap::Args;
 use comfy_table::Table;
-use hooke_core::diagnostics::energy;
+use hooke_core::diagnostics::{energy, relative_l2};
 use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::Scene;
 use hooke_core::{Solver, State};
@@ -139,9 +139,8 @@ fn measure(
         .zip(&expected.positions)
         .map(|(p, q)| p.distance(*q))
         .collect();
-    let norm: f64 = expected.positions.iter().map(|p| p.length_squared()).sum();
     Row {
-        relative_l2_error: (errors.iter().map(|e| e * e).sum::<f64>() / norm).sqrt(),
+        relative_l2_error: relative_l2(&state.positions, &expected.positions),
         max_vertex_error_m: errors.iter().copied().fold(0.0, f64::max),
         energy_change_j: drift(&state),
         failure: None,

@@ -21,7 +21,7 @@ use hooke_core::Solver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, CpuSolver, Method, PhaseTimes};
-use hooke_gpu::{GpuError, GpuMethod, GpuPhaseTimes, GpuSolver, TimingSource};
+use hooke_gpu::{GpuError, GpuMethod, GpuSolver, TimingSource};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
@@ -274,15 +274,18 @@ fn measure_gpu(
         solver.step(STEPS_PER_SAMPLE)?;
         totals.push(start.elapsed() / STEPS_PER_SAMPLE);
     }
-    let mut phases: Vec<GpuPhaseTimes> = Vec::with_capacity(args.steps as usize);
+    let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
+    let mut source = TimingSource::WallClock;
     for _ in 0..args.steps {
-        phases.push(solver.step_timed()?);
+        let (times, from) = solver.step_timed()?;
+        phases.push(times);
+        source = from;
     }
     let total_ms = median(totals);
     let memory = solver.memory();
-    let timing = match phases.first().map(|p| p.source) {
-        Some(TimingSource::Timestamps) => "gpu timestamps",
-        _ => "wall clock",
+    let timing = match source {
+        TimingSource::Timestamps => "gpu timestamps",
+        TimingSource::WallClock => "wall clock",
     };
     let method = solver.method();
     Ok(Row {
@@ -303,7 +306,7 @@ fn measure_gpu(
             )
         }),
         integration_ms: median(phases.iter().map(|p| p.integration).collect()),
-        phased_total_ms: median(phases.iter().map(GpuPhaseTimes::total).collect()),
+        phased_total_ms: median(phases.iter().map(PhaseTimes::total).collect()),
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step: memory.total() as usize,

@@ -560,14 +560,7 @@ impl Viewer {
             self.config.usage.contains(wgpu::TextureUsages::COPY_SRC),
             "this window's surface cannot be copied; use `hooke render` for images"
         );
-        let (sender, receiver) = std::sync::mpsc::channel();
-        buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = sender.send(r);
-        });
-        self.context
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())?;
-        receiver.recv()??;
+        hooke_gpu::gpu::map_blocking(&self.context, buffer)?;
         let [w, h] = self.size();
         let bgra = matches!(
             self.config.format,

@@ -123,7 +123,7 @@ pub fn show(
             if ui.button("Measure GPU phases").clicked() {
                 simulation.measure_phases();
             }
-            if let Some(p) = simulation.phases {
+            if let Some((p, source)) = simulation.phases {
                 let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
                 ui.label(format!(
                     "force {:.3} ms, accumulation {}, integration {:.3} ms ({:?})",
@@ -131,7 +131,7 @@ pub fn show(
                     p.force_accumulation
                         .map_or("-".to_owned(), |a| format!("{:.3} ms", ms(a))),
                     ms(p.integration),
-                    p.source
+                    source
                 ));
             }
             if let Some(message) = &simulation.message {

@@ -6,11 +6,11 @@ use std::sync::Arc;
 use glam::{DVec3, Vec3};
 use hooke_core::scene::Scene;
 use hooke_core::stability::stability_limit;
-use hooke_core::{Drag, Model, SimParams, Solver, State, Wind};
+use hooke_core::{Drag, Model, PhaseTimes, SimParams, Solver, State, Wind};
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
 use hooke_gpu::render::AsyncReadback;
 use hooke_gpu::wgpu;
-use hooke_gpu::{Accumulation, GpuContext, GpuMethod, GpuPhaseTimes, GpuSolver};
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod, GpuSolver, TimingSource, positions_to_vec4};
 
 /// Which solver runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -61,7 +61,7 @@ pub struct Simulation {
     pub step_once: bool,
     pub grab: Option<(u32, Vec3)>,
     pub message: Option<String>,
-    pub phases: Option<GpuPhaseTimes>,
+    pub phases: Option<(PhaseTimes, TimingSource)>,
     status: AsyncReadback,
     frames_since_status: u64,
 }
@@ -256,15 +256,7 @@ impl Simulation {
                     self.message = Some(error.to_string());
                     self.paused = true;
                 }
-                let positions: Vec<[f32; 4]> = solver
-                    .read_state()
-                    .positions
-                    .iter()
-                    .map(|p| {
-                        let p = p.as_vec3();
-                        [p.x, p.y, p.z, 1.0]
-                    })
-                    .collect();
+                let positions = positions_to_vec4(&solver.read_state().positions);
                 self.context
                     .queue
                     .write_buffer(buffer, 0, bytemuck::cast_slice(&positions));

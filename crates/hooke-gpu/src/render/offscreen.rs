@@ -79,21 +79,7 @@ impl OffscreenTarget {
         context: &GpuContext,
         buffer: &wgpu::Buffer,
     ) -> Result<Vec<u8>, GpuError> {
-        let (sender, receiver) = std::sync::mpsc::channel();
-        buffer
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, move |result| {
-                let _ = sender.send(result);
-            });
-        context
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::ReadBack(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|e| GpuError::ReadBack(e.to_string()))?
-            .map_err(|e| GpuError::ReadBack(e.to_string()))?;
-        context.take_error()?;
+        crate::gpu::map_blocking(context, buffer)?;
         let row = 4 * self.size[0] as usize;
         let padded = self.padded_row() as usize;
         let pixels = {
