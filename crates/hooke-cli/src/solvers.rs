@@ -85,9 +85,10 @@ impl From<OrderArg> for VertexOrder {
 /// Flags shared by every command that builds a solver.
 #[derive(Clone, Debug, Args)]
 pub struct SolverArgs {
-    /// Which solver runs the simulation.
-    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
-    pub backend: Backend,
+    /// Which solver runs the simulation (default: cpu for `run`, gpu for `view`, which then
+    /// draws straight from the solver's buffers).
+    #[arg(long, value_enum)]
+    pub backend: Option<Backend>,
     /// Data structure (default: gather on the cpu, where it is faster; scatter on the gpu).
     #[arg(long, value_enum)]
     pub method: Option<MethodArg>,
@@ -104,7 +105,7 @@ pub struct SolverArgs {
 
 impl SolverArgs {
     pub fn build(&self, model: &Model, params: &SimParams) -> anyhow::Result<Box<dyn Solver>> {
-        Ok(match self.backend {
+        Ok(match self.backend.unwrap_or(Backend::Cpu) {
             Backend::Reference => Box::new(ReferenceSolver::new(model, params)),
             Backend::Cpu => {
                 let options = CpuOptions {

@@ -491,41 +491,48 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
     }
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
-    let shot = dir.path().join("viewer.png");
-    let result = Command::new("xvfb-run")
-        .args([
-            "-a",
-            "-s",
-            "-screen 0 1024x768x24",
-            env!("CARGO_BIN_EXE_hooke"),
-            "view",
-        ])
-        .args([
-            path_str(&scene),
-            "--frames",
-            "30",
-            "--size",
-            "640x400",
-            "--screenshot",
-            path_str(&shot),
-        ])
-        .output()
-        .expect("xvfb-run runs");
-    let stderr = text(&result.stderr);
-    assert!(result.status.success(), "{stderr}");
-    assert!(
-        stderr.contains("30 frames") && stderr.contains("0 blocking GPU read-backs"),
-        "{stderr}"
-    );
-    let image = hooke_gpu::render::Image::load_png(&shot).expect("screenshot");
-    assert_eq!(image.size, [640, 400]);
-    // The checker's red squares and the pin markers: clearly red pixels mean cloth in view.
-    let red = image
-        .rgba
-        .chunks(4)
-        .filter(|p| {
-            i32::from(p[0]) > i32::from(p[1]) + 50 && i32::from(p[0]) > i32::from(p[2]) + 50
-        })
-        .count();
-    assert!(red > image.rgba.len() / 4 / 200, "only {red} cloth pixels");
+    // The GPU solver (drawn from its own buffers) and the CPU one (uploaded each frame).
+    for backend in ["gpu", "cpu"] {
+        let shot = dir.path().join(format!("viewer-{backend}.png"));
+        let result = Command::new("xvfb-run")
+            .args([
+                "-a",
+                "-s",
+                "-screen 0 1024x768x24",
+                env!("CARGO_BIN_EXE_hooke"),
+                "view",
+            ])
+            .args([
+                path_str(&scene),
+                "--frames",
+                "30",
+                "--size",
+                "640x400",
+                "--backend",
+                backend,
+            ])
+            .args(["--screenshot", path_str(&shot)])
+            .output()
+            .expect("xvfb-run runs");
+        let stderr = text(&result.stderr);
+        assert!(result.status.success(), "{backend}: {stderr}");
+        assert!(
+            stderr.contains("30 frames") && stderr.contains("0 blocking GPU read-backs"),
+            "{stderr}"
+        );
+        let image = hooke_gpu::render::Image::load_png(&shot).expect("screenshot");
+        assert_eq!(image.size, [640, 400]);
+        // The checker's red squares and the pin markers: clearly red pixels mean cloth in view.
+        let red = image
+            .rgba
+            .chunks(4)
+            .filter(|p| {
+                i32::from(p[0]) > i32::from(p[1]) + 50 && i32::from(p[0]) > i32::from(p[2]) + 50
+            })
+            .count();
+        assert!(
+            red > image.rgba.len() / 4 / 200,
+            "{backend}: only {red} cloth pixels"
+        );
+    }
 }

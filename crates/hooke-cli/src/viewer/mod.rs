@@ -43,6 +43,9 @@ pub struct ViewArgs {
     /// Run even if dt exceeds the stability bound.
     #[arg(long)]
     pub allow_unstable: bool,
+    /// The solver to start with (the panel can switch); the reference backend is not offered.
+    #[command(flatten)]
+    pub solver: crate::solvers::SolverArgs,
 }
 
 pub fn run(args: ViewArgs) -> anyhow::Result<()> {
@@ -195,7 +198,11 @@ impl Viewer {
             color_space: wgpu::SurfaceColorSpace::Auto,
         };
         surface.configure(&context.device, &config);
-        let simulation = Simulation::new(Arc::clone(&context), scene)?;
+        let simulation = Simulation::new(
+            Arc::clone(&context),
+            scene,
+            simulation::Choice::from_args(&args.solver)?,
+        )?;
         let renderer = SceneRenderer::new(&context, simulation.model(), format)?;
         let picker = Picker::new(&context, simulation.model().vertex_count() as u32)?;
         let egui = egui::Context::default();

@@ -20,6 +20,19 @@ pub enum Choice {
 }
 
 impl Choice {
+    /// The solver the command line asks for.
+    pub fn from_args(args: &crate::solvers::SolverArgs) -> anyhow::Result<Self> {
+        use crate::solvers::{Backend, MethodArg};
+        Ok(match (args.backend.unwrap_or(Backend::Gpu), args.method) {
+            (Backend::Reference, _) => {
+                anyhow::bail!("the viewer runs the cpu or gpu backend, not the reference")
+            }
+            (Backend::Cpu, method) => Choice::Cpu(method.unwrap_or(MethodArg::Gather).into()),
+            (Backend::Gpu, Some(MethodArg::Gather)) => Choice::Gpu(GpuMethod::Gather),
+            (Backend::Gpu, _) => Choice::Gpu(GpuMethod::Scatter(args.accumulation.into())),
+        })
+    }
+
     pub fn label(self) -> String {
         match self {
             Self::Gpu(m) => format!("gpu {}", m.name()),
@@ -67,7 +80,7 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    pub fn new(context: Arc<GpuContext>, scene: Scene) -> anyhow::Result<Self> {
+    pub fn new(context: Arc<GpuContext>, scene: Scene, choice: Choice) -> anyhow::Result<Self> {
         let gpu_methods = GpuMethod::all().into_iter().filter(|m| match m {
             GpuMethod::Scatter(Accumulation::AtomicF32) => {
                 context.has(wgpu::Features::SHADER_FLOAT32_ATOMIC)
@@ -81,7 +94,6 @@ impl Simulation {
             .map(Choice::Gpu)
             .chain(Method::ALL.map(Choice::Cpu))
             .collect();
-        let choice = Choice::Gpu(GpuMethod::Scatter(Accumulation::Incidence));
         let wind = scene.params.wind;
         let (heading, speed) = wind.map_or((0.0, 3.0), |w| {
             (
