@@ -2,6 +2,7 @@
 //! its scenes and meshes, and the float64 reference solver every other solver is checked against.
 
 pub mod atomic_file;
+pub mod collide;
 pub mod diagnostics;
 pub mod forces;
 pub mod mesh;
@@ -12,6 +13,8 @@ pub mod scene;
 mod solver;
 pub mod stability;
 mod state;
+#[doc(hidden)]
+pub mod test_scenes;
 
 pub use model::{Adjacency, MassModel, Model, ModelError, ModelOptions, StiffnessModel};
 pub use params::{Drag, PointForce, SimParams, Wind};

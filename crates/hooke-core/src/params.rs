@@ -13,6 +13,8 @@
 
 use glam::DVec3;
 
+use crate::collide::Collider;
+
 /// A constant force on one vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PointForce {
@@ -52,6 +54,10 @@ pub struct SimParams {
     pub wind: Option<Wind>,
     pub point_forces: Vec<PointForce>,
     pub drags: Vec<Drag>,
+    /// Spheres and planes the cloth cannot enter (see [`crate::collide`]).
+    pub colliders: Vec<Collider>,
+    /// How far from a collider's surface the cloth is held, m (its half thickness).
+    pub collision_thickness: f64,
 }
 
 impl Default for SimParams {
@@ -63,6 +69,8 @@ impl Default for SimParams {
             wind: None,
             point_forces: Vec::new(),
             drags: Vec::new(),
+            colliders: Vec::new(),
+            collision_thickness: 0.0,
         }
     }
 }

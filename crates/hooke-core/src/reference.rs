@@ -6,6 +6,7 @@
 
 use glam::DVec3;
 
+use crate::collide::resolve;
 use crate::diagnostics::spring_force_on_a;
 use crate::forces::add_external_forces;
 use crate::{Model, SimError, SimParams, Solver, State};
@@ -54,7 +55,8 @@ impl ReferenceSolver {
                 x
             } else {
                 let total = self.forces[i] - params.damping * (x - x_previous) / dt;
-                total / model.masses[i] * dt * dt + 2.0 * x - x_previous
+                let moved = total / model.masses[i] * dt * dt + 2.0 * x - x_previous;
+                resolve(&params.colliders, params.collision_thickness, x, moved)
             };
             if !next.is_finite() {
                 return Err(SimError::NonFinite {

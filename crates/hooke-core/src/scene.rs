@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::{Deserialize, Deserializer, Serialize};
 
+use crate::collide::{Collider, Shape};
 use crate::mesh::{self, GridPlane, Mesh, MeshWarning};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
 use crate::{Drag, MassModel, Model, ModelOptions, PointForce, SimParams, StiffnessModel, Wind};
@@ -34,6 +35,43 @@ pub struct SceneFile {
     pub forces: Vec<ForceSection>,
     #[serde(default, rename = "drag", skip_serializing_if = "Vec::is_empty")]
     pub drags: Vec<DragSection>,
+    #[serde(default, rename = "collider", skip_serializing_if = "Vec::is_empty")]
+    pub colliders: Vec<ColliderSection>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collision: Option<CollisionSection>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ColliderKind {
+    Sphere,
+    Plane,
+}
+
+/// A sphere (`center`, `radius`) or a plane (`point`, `normal`; solid behind the normal).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ColliderSection {
+    pub kind: ColliderKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<[f64; 3]>,
+    /// Share of tangential motion removed per contact step, 0..1.
+    #[serde(default)]
+    pub friction: f64,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSection {
+    /// Distance at which the cloth is held from collider surfaces, m.
+    #[serde(default)]
+    pub thickness: f64,
 }
 
 /// Where the mesh comes from.
@@ -368,6 +406,8 @@ impl SceneFile {
             wind: None,
             forces: Vec::new(),
             drags: Vec::new(),
+            colliders: Vec::new(),
+            collision: None,
         }
     }
 
@@ -665,6 +705,65 @@ impl SceneFile {
                 stiffness: d.stiffness,
             });
         }
+        let mut colliders = Vec::new();
+        for (k, c) in self.colliders.iter().enumerate() {
+            let field = |name: &str| format!("collider[{k}].{name}");
+            let need = |name: &str, value: Option<[f64; 3]>| {
+                let value = value.ok_or_else(|| {
+                    invalid(
+                        &field(name),
+                        format!("a {:?} collider needs {name}", c.kind),
+                    )
+                })?;
+                finite(&field(name), value)?;
+                Ok::<DVec3, SceneError>(DVec3::from_array(value))
+            };
+            require((0.0..=1.0).contains(&c.friction), || {
+                invalid(
+                    &field("friction"),
+                    format!("must be 0..=1, found {}", c.friction),
+                )
+            })?;
+            let shape = match c.kind {
+                ColliderKind::Sphere => {
+                    let radius = c.radius.unwrap_or(f64::NAN);
+                    require(radius > 0.0 && radius.is_finite(), || {
+                        invalid(
+                            &field("radius"),
+                            format!("must be a positive number, found {radius}"),
+                        )
+                    })?;
+                    Shape::Sphere {
+                        center: need("center", c.center)?,
+                        radius,
+                    }
+                }
+                ColliderKind::Plane => {
+                    let normal = need("normal", c.normal)?;
+                    let normal = normal
+                        .try_normalize()
+                        .ok_or_else(|| invalid(&field("normal"), "must not be zero".into()))?;
+                    Shape::Plane {
+                        point: need("point", c.point)?,
+                        normal,
+                    }
+                }
+            };
+            colliders.push(Collider {
+                shape,
+                friction: c.friction,
+            });
+        }
+        let collision_thickness = self.collision.as_ref().map_or(0.0, |c| c.thickness);
+        require(
+            collision_thickness >= 0.0 && collision_thickness.is_finite(),
+            || {
+                invalid(
+                    "collision.thickness",
+                    format!("must be zero or positive, found {collision_thickness}"),
+                )
+            },
+        )?;
         Ok(SimParams {
             dt: 0.0,
             damping: self.material.damping,
@@ -672,6 +771,8 @@ impl SceneFile {
             wind,
             point_forces,
             drags,
+            colliders,
+            collision_thickness,
         })
     }
 }
@@ -830,6 +931,31 @@ select = ["corners"]
         assert_eq!(
             build(&empty).unwrap_err().to_string(),
             "test.toml: pins.boxes[0]: contains no vertex"
+        );
+    }
+
+    #[test]
+    fn colliders_are_read_and_checked() {
+        let text = format!(
+            "{CLOTH}\n[collision]\nthickness = 0.01\n[[collider]]\nkind = \"sphere\"\ncenter = [0, -0.5, 0]\nradius = 0.3\nfriction = 0.2\n[[collider]]\nkind = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 2, 0]\n"
+        );
+        let scene = build(&text).expect("builds");
+        assert_eq!(scene.params.colliders.len(), 2);
+        assert_eq!(scene.params.collision_thickness, 0.01);
+        assert!(
+            matches!(scene.params.colliders[1].shape, Shape::Plane { normal, .. } if normal == DVec3::Y)
+        );
+        let bad = text.replace("radius = 0.3", "radius = -1");
+        assert_eq!(
+            build(&bad).unwrap_err().to_string(),
+            "test.toml: collider[0].radius: must be a positive number, found -1"
+        );
+        let missing = text.replace("normal = [0, 2, 0]\n", "");
+        assert!(
+            build(&missing)
+                .unwrap_err()
+                .to_string()
+                .contains("collider[1].normal")
         );
     }
 

@@ -313,7 +313,49 @@ impl CpuSolver {
                 })
             }
         };
+        self.collide();
         self.finish_step(all_finite)
+    }
+
+    /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in
+    /// parallel over vertex chunks, before the new positions become current.
+    fn collide(&mut self) {
+        if self.params.colliders.is_empty() {
+            return;
+        }
+        let (colliders, thickness) = (&self.params.colliders, self.params.collision_thickness);
+        let (current, scales) = (&self.current, &self.integrator.scales);
+        let real = self.model.vertex_count();
+        let [nx, ny, nz] = self.next.axes_mut();
+        let [dx, dy, dz] = self.delta.axes_mut();
+        let free = scales.axis(0);
+        let [cx, cy, cz] = current.axes();
+        nx.par_iter_mut()
+            .zip(ny.par_iter_mut())
+            .zip(nz.par_iter_mut())
+            .zip(
+                dx.par_iter_mut()
+                    .zip(dy.par_iter_mut())
+                    .zip(dz.par_iter_mut()),
+            )
+            .enumerate()
+            .for_each(|(slice, (((nx, ny), nz), ((dx, dy), dz)))| {
+                for lane in 0..LANES {
+                    if slice * LANES + lane >= real || free[slice][lane] <= 0.0 {
+                        continue;
+                    }
+                    let x = DVec3::new(
+                        cx[slice][lane].into(),
+                        cy[slice][lane].into(),
+                        cz[slice][lane].into(),
+                    );
+                    let next = DVec3::new(nx[lane].into(), ny[lane].into(), nz[lane].into());
+                    let p = hooke_core::collide::resolve(colliders, thickness, x, next).as_vec3();
+                    (nx[lane], ny[lane], nz[lane]) = (p.x, p.y, p.z);
+                    let d = p - x.as_vec3();
+                    (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);
+                }
+            });
     }
 
     /// One step with every phase as its own pass, timed. Results equal [`Solver::step`]'s.
@@ -363,6 +405,9 @@ impl CpuSolver {
             times.integration = start.elapsed();
             all_finite
         });
+        let start = Instant::now();
+        pool.install(|| self.collide());
+        times.integration += start.elapsed();
         self.finish_step(all_finite)?;
         Ok(times)
     }

@@ -428,3 +428,45 @@ fn avx2_and_portable_kernels_are_bit_identical() {
         );
     }
 }
+
+/// The closest any vertex comes to the surfaces of the ball and the ground (negative: inside).
+fn clearances(scene: &Scene, positions: &[DVec3]) -> (f64, f64) {
+    use hooke_core::collide::Shape;
+    let mut ball = f64::INFINITY;
+    let mut ground = f64::INFINITY;
+    for p in positions {
+        for collider in &scene.params.colliders {
+            match collider.shape {
+                Shape::Sphere { center, radius } => ball = ball.min(p.distance(center) - radius),
+                Shape::Plane { point, normal } => ground = ground.min((*p - point).dot(normal)),
+            }
+        }
+    }
+    (ball, ground)
+}
+
+#[test]
+fn cloth_dropped_on_a_ball_never_enters_it_or_the_ground() {
+    let scene = hooke_core::test_scenes::cloth_onto_ball();
+    let thickness = scene.params.collision_thickness;
+    for mut solver in all_solvers(&scene.model, &scene.params) {
+        let mut touched = false;
+        for _ in 0..40 {
+            solver.step(100).expect("stable");
+            let (ball, ground) = clearances(&scene, &solver.read_state().positions);
+            // Projection puts a vertex exactly at the thickness; f32 rounding of positions of
+            // order 1 m is below 1e-6 m.
+            assert!(
+                ball > thickness - 1e-6 && ground > thickness - 1e-6,
+                "{}: {ball} {ground}",
+                solver.describe()
+            );
+            touched |= ball < thickness + 1e-3;
+        }
+        assert!(
+            touched,
+            "{}: the cloth never reached the ball",
+            solver.describe()
+        );
+    }
+}

@@ -24,7 +24,10 @@ pub struct StepUniforms {
     pub triangle_count: u32,
     /// Fixed-point accumulation: largest allowed |contribution| in integer units.
     pub fixed_limit: f32,
-    pub _pad: [u32; 2],
+    /// Colliders in the collider buffer.
+    pub collider_count: u32,
+    /// Distance the cloth keeps from collider surfaces, m.
+    pub collision_thickness: f32,
 }
 
 /// A spring (`Spring` in WGSL).
@@ -112,6 +115,8 @@ mod tests {
             offset_of!(StepUniforms, inverse_dt),
             offset_of!(StepUniforms, triangle_count),
             offset_of!(StepUniforms, fixed_limit),
+            offset_of!(StepUniforms, collider_count),
+            offset_of!(StepUniforms, collision_thickness),
         ];
         assert_eq!(&offsets[..host.len()], host.map(|o| o as u32).as_slice());
 

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
+use hooke_core::collide::Shape;
 use hooke_core::{Model, PhaseTimes, SimError, SimParams, Solver, State};
 
 use crate::context::{GpuContext, GpuError};
@@ -234,6 +235,8 @@ pub struct GpuSolver {
     tick: wgpu::ComputePipeline,
     tick_group: wgpu::BindGroup,
     external: Option<ExternalPass>,
+    /// The collision pass and its bind groups (by current buffer), when the scene has colliders.
+    collide: Option<(wgpu::ComputePipeline, [wgpu::BindGroup; 2])>,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     steps_taken: u64,
 }
@@ -369,6 +372,7 @@ impl GpuSolver {
             tick,
             tick_group,
             external: None,
+            collide: None,
             timestamps,
             steps_taken: 0,
         };
@@ -506,6 +510,10 @@ impl GpuSolver {
             n,
             writes,
         );
+        if let Some((pipeline, groups)) = &self.collide {
+            let writes = PassTimer::next(timer, Phase::Integration);
+            dispatch(encoder, "collide", pipeline, &groups[current], n, writes);
+        }
         dispatch(encoder, "tick", &self.tick, &self.tick_group, 1, None);
     }
 
@@ -832,6 +840,9 @@ impl GpuSolver {
                 n,
                 None,
             );
+            if let Some((pipeline, groups)) = &self.collide {
+                dispatch(e, "collide", pipeline, &groups[current], n, None);
+            }
             dispatch(e, "tick", &self.tick, &self.tick_group, 1, None);
         })?;
         Ok(times)
@@ -1461,6 +1472,52 @@ impl GpuSolver {
         }))
     }
 
+    fn build_collide(
+        &self,
+        params: &SimParams,
+    ) -> Result<Option<(wgpu::ComputePipeline, [wgpu::BindGroup; 2])>, GpuError> {
+        if params.colliders.is_empty() {
+            return Ok(None);
+        }
+        let ctx = &*self.context;
+        let entries: Vec<[f32; 4]> = params
+            .colliders
+            .iter()
+            .flat_map(|c| {
+                let friction = c.friction as f32;
+                match c.shape {
+                    Shape::Sphere { center, radius } => {
+                        let p = center.as_vec3();
+                        [[p.x, p.y, p.z, radius as f32], [0.0, 1.0, 0.0, friction]]
+                    }
+                    Shape::Plane { point, normal } => {
+                        let (p, n) = (point.as_vec3(), normal.as_vec3());
+                        [[p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction]]
+                    }
+                }
+            })
+            .collect();
+        let buffer = storage(ctx, "colliders", &entries, wgpu::BufferUsages::empty());
+        let pipeline = compute_pipeline(ctx, "collide", kernels::COLLIDE, "main")?;
+        let layout = pipeline.get_bind_group_layout(0);
+        let groups = [0, 1].map(|current| {
+            bind_group(
+                ctx,
+                "collide",
+                &layout,
+                &[
+                    (0, self.uniform_buffer.as_entire_binding()),
+                    (1, self.positions[current].as_entire_binding()),
+                    (2, self.positions[1 - current].as_entire_binding()),
+                    (3, self.deltas.as_entire_binding()),
+                    (4, self.scales.as_entire_binding()),
+                    (5, buffer.as_entire_binding()),
+                ],
+            )
+        });
+        Ok(Some((pipeline, groups)))
+    }
+
     fn apply_params(&mut self, params: &SimParams) -> Result<(), GpuError> {
         let dt = params.dt;
         let scales: Vec<[f32; 4]> = self
@@ -1490,6 +1547,9 @@ impl GpuSolver {
         self.uniforms.triangle_count = 0;
         self.external = self.build_external(params)?;
         self.uniforms.has_extra = u32::from(self.external.is_some());
+        self.collide = self.build_collide(params)?;
+        self.uniforms.collider_count = params.colliders.len() as u32;
+        self.uniforms.collision_thickness = params.collision_thickness as f32;
         self.write_uniforms();
         self.context.take_error()
     }

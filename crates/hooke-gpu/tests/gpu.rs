@@ -320,3 +320,46 @@ fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
         "nothing in the corner"
     );
 }
+
+#[test]
+fn cloth_dropped_on_a_ball_never_enters_it_on_the_gpu() {
+    use hooke_core::collide::Shape;
+    let Some(context) = context() else { return };
+    let scene = hooke_core::test_scenes::cloth_onto_ball();
+    let thickness = scene.params.collision_thickness;
+    for method in [
+        GpuMethod::Gather,
+        GpuMethod::Scatter(Accumulation::Incidence),
+    ] {
+        let mut solver = GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method)
+            .expect("solver");
+        let mut touched = false;
+        for _ in 0..40 {
+            solver.step(100).expect("stable");
+            for p in solver.read_state().positions {
+                for collider in &scene.params.colliders {
+                    let clearance = match collider.shape {
+                        Shape::Sphere { center, radius } => p.distance(center) - radius,
+                        Shape::Plane { point, normal } => (p - point).dot(normal),
+                    };
+                    // As on the CPU; GPU sqrt and division may be 2.5 ulp off, still far below 1e-5 m.
+                    assert!(
+                        clearance > thickness - 1e-5,
+                        "{}: {clearance} from {:?} at {p} after {} steps",
+                        method.name(),
+                        collider.shape,
+                        solver.steps_taken()
+                    );
+                    if matches!(collider.shape, Shape::Sphere { .. }) {
+                        touched |= clearance < thickness + 1e-3;
+                    }
+                }
+            }
+        }
+        assert!(
+            touched,
+            "{}: the cloth never reached the ball",
+            method.name()
+        );
+    }
+}

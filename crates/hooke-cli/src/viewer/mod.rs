@@ -203,7 +203,8 @@ impl Viewer {
             scene,
             simulation::Choice::from_args(&args.solver)?,
         )?;
-        let renderer = SceneRenderer::new(&context, simulation.model(), format)?;
+        let mut renderer = SceneRenderer::new(&context, simulation.model(), format)?;
+        renderer.set_colliders(&context, &simulation.params().colliders);
         let picker = Picker::new(&context, simulation.model().vertex_count() as u32)?;
         let egui = egui::Context::default();
         let egui_state = egui_winit::State::new(

@@ -190,6 +190,8 @@ impl Simulation {
                 .into_iter()
                 .chain(self.scene.params.drags.iter().cloned())
                 .collect(),
+            colliders: self.scene.params.colliders.clone(),
+            collision_thickness: self.scene.params.collision_thickness,
         }
     }
 

@@ -19,8 +19,9 @@ struct StepUniforms {
     triangle_count: u32,
     // Fixed-point accumulation: largest allowed |contribution| in integer units.
     fixed_limit: f32,
-    _pad0: u32,
-    _pad1: u32,
+    // Colliders in the collider buffer, and the distance the cloth keeps from them (m).
+    collider_count: u32,
+    collision_thickness: f32,
 }
 
 // Mirrors `GpuStatus` in layout.rs: written by the kernels, read back by the solver.

@@ -18,6 +18,7 @@ pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
 pub const INTEGRATE: &str = kernel_source!("integrate.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
+pub const COLLIDE: &str = kernel_source!("collide.wgsl");
 
 /// Every kernel by name, for validation.
 #[cfg(test)]
@@ -33,6 +34,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("integrate", INTEGRATE),
     ("external", EXTERNAL),
     ("tick", TICK),
+    ("collide", COLLIDE),
 ];
 
 #[cfg(test)]

@@ -19,13 +19,20 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// A three-quarter view from above, aimed a little below the rest shape where a hanging
-    /// cloth sags to.
+    /// A three-quarter view from above of everything between the ground and the top of the
+    /// scene, where a falling or hanging cloth will be.
     pub fn framing(bounds: &SceneBounds) -> Self {
         let extent = bounds.extent();
+        let floor = bounds.ground_height.max(bounds.min.y - extent);
+        let span = extent.max(bounds.max.y - floor);
+        let center = bounds.center();
         Self {
-            target: bounds.center() - Vec3::Y * (0.2 * extent),
-            distance: 1.7 * extent,
+            target: Vec3::new(
+                center.x,
+                0.5 * (bounds.max.y + floor) + 0.1 * span,
+                center.z,
+            ),
+            distance: 1.6 * span,
             yaw: 0.6,
             pitch: 0.5,
             fov_y: 45f32.to_radians(),

@@ -20,6 +20,7 @@ pub use readback::AsyncReadback;
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
 use hooke_core::Model;
+use hooke_core::collide::{Collider, Shape};
 use wgpu::util::DeviceExt;
 
 use crate::context::GpuContext;
@@ -112,6 +113,12 @@ pub struct SceneRenderer {
     springs: wgpu::RenderPipeline,
     pins: wgpu::RenderPipeline,
     wind: wgpu::RenderPipeline,
+    sphere: wgpu::RenderPipeline,
+    /// Unit sphere triangles (vec4 per corner), and collider spheres (centre, radius).
+    sphere_mesh: wgpu::Buffer,
+    sphere_mesh_vertices: u32,
+    spheres: wgpu::Buffer,
+    sphere_count: u32,
     frame: wgpu::Buffer,
     counts: wgpu::Buffer,
     triangles: wgpu::Buffer,
@@ -160,6 +167,7 @@ impl SceneRenderer {
                 .map(|l| l.max(1e-12) as f32)
             })
             .collect();
+        let unit_sphere = unit_sphere_triangles(24, 16);
         let pinned: Vec<u32> = (0..n as u32)
             .filter(|&v| model.pinned[v as usize])
             .collect();
@@ -225,6 +233,11 @@ impl SceneRenderer {
             springs: pipeline("springs", "vs_springs", "fs_flat", lines),
             pins: pipeline("pins", "vs_pins", "fs_flat", list),
             wind: pipeline("wind arrows", "vs_wind", "fs_flat", lines),
+            sphere: pipeline("collider spheres", "vs_sphere", "fs_sphere", list),
+            sphere_mesh: storage(context, "unit sphere", &unit_sphere, none),
+            sphere_mesh_vertices: unit_sphere.len() as u32,
+            spheres: storage(context, "collider spheres", &[[0.0f32; 4]], none),
+            sphere_count: 0,
             frame,
             counts,
             triangles: storage(context, "render triangles", &triangles, none),
@@ -249,6 +262,44 @@ impl SceneRenderer {
 
     pub fn bounds(&self) -> SceneBounds {
         self.bounds
+    }
+
+    /// Shows the scene's colliders: spheres are drawn, and the ground moves to the highest
+    /// horizontal plane below the cloth.
+    pub fn set_colliders(&mut self, context: &GpuContext, colliders: &[Collider]) {
+        let spheres: Vec<[f32; 4]> = colliders
+            .iter()
+            .filter_map(|c| match c.shape {
+                Shape::Sphere { center, radius } => {
+                    let c = center.as_vec3();
+                    Some([c.x, c.y, c.z, radius as f32])
+                }
+                Shape::Plane { .. } => None,
+            })
+            .collect();
+        if !spheres.is_empty() {
+            self.spheres = storage(
+                context,
+                "collider spheres",
+                &spheres,
+                wgpu::BufferUsages::empty(),
+            );
+        }
+        self.sphere_count = spheres.len() as u32;
+        let floor = colliders
+            .iter()
+            .filter_map(|c| match c.shape {
+                Shape::Plane { point, normal }
+                    if normal.y > 0.999 && point.y as f32 <= self.bounds.min.y =>
+                {
+                    Some(point.y as f32)
+                }
+                _ => None,
+            })
+            .reduce(f32::max);
+        if let Some(height) = floor {
+            self.bounds.ground_height = height;
+        }
     }
 
     fn depth_view(&mut self, context: &GpuContext, size: [u32; 2]) -> wgpu::TextureView {
@@ -336,6 +387,16 @@ impl SceneRenderer {
         let springs_group = group_for(&self.springs, &[0, 1, 6]);
         let pins_group = group_for(&self.pins, &[0, 1, 7]);
         let wind_group = group_for(&self.wind, &[0]);
+        let sphere_group = bind_group(
+            context,
+            "collider spheres",
+            &self.sphere.get_bind_group_layout(0),
+            &[
+                (0, self.frame.as_entire_binding()),
+                (8, self.spheres.as_entire_binding()),
+                (9, self.sphere_mesh.as_entire_binding()),
+            ],
+        );
         let depth = self.depth_view(context, size);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("scene"),
@@ -368,6 +429,11 @@ impl SceneRenderer {
         pass.set_pipeline(&self.ground);
         pass.set_bind_group(0, &ground_group, &[]);
         pass.draw(0..6, 0..1);
+        if self.sphere_count > 0 {
+            pass.set_pipeline(&self.sphere);
+            pass.set_bind_group(0, &sphere_group, &[]);
+            pass.draw(0..self.sphere_mesh_vertices, 0..self.sphere_count);
+        }
         pass.set_pipeline(&self.cloth);
         pass.set_bind_group(0, &cloth_group, &[]);
         pass.draw(0..3 * self.triangle_count, 0..1);
@@ -433,6 +499,33 @@ fn shader(context: &GpuContext, label: &str, source: &str) -> wgpu::ShaderModule
             label: Some(label),
             source: wgpu::ShaderSource::Wgsl(source.into()),
         })
+}
+
+/// Corners of a unit UV sphere's triangles (vec4, w unused), for instanced drawing.
+fn unit_sphere_triangles(segments: u32, rings: u32) -> Vec<[f32; 4]> {
+    let point = |segment: u32, ring: u32| {
+        let theta = std::f32::consts::PI * ring as f32 / rings as f32;
+        let phi = std::f32::consts::TAU * segment as f32 / segments as f32;
+        [
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            theta.sin() * phi.sin(),
+            0.0,
+        ]
+    };
+    let mut corners = Vec::with_capacity((6 * segments * rings) as usize);
+    for ring in 0..rings {
+        for segment in 0..segments {
+            let [a, b, c, d] = [
+                point(segment, ring),
+                point(segment + 1, ring),
+                point(segment, ring + 1),
+                point(segment + 1, ring + 1),
+            ];
+            corners.extend([a, c, b, b, c, d]);
+        }
+    }
+    corners
 }
 
 /// `vertex_count + 1` offsets, then each vertex's triangle indices.

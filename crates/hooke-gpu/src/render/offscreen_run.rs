@@ -36,7 +36,8 @@ impl OffscreenRun {
         method: GpuMethod,
         size: [u32; 2],
     ) -> Result<Self, GpuError> {
-        let renderer = SceneRenderer::new(&context, model, OffscreenTarget::FORMAT)?;
+        let mut renderer = SceneRenderer::new(&context, model, OffscreenTarget::FORMAT)?;
+        renderer.set_colliders(&context, &params.colliders);
         let target = OffscreenTarget::new(&context, size);
         let readback = target.readback_buffer(&context);
         let options = RenderOptions {

@@ -174,3 +174,34 @@ fn vs_wind(@builtin(vertex_index) index: u32, @builtin(instance_index) arrow: u3
 fn fs_flat(in: LineOut) -> @location(0) vec4<f32> {
     return vec4<f32>(in.color, 1.0);
 }
+
+// Collider spheres: a unit sphere mesh (position = normal) instanced per sphere.
+// Per sphere: centre (xyz) and radius (w).
+@group(0) @binding(8) var<storage, read> spheres: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> sphere_mesh: array<vec4<f32>>;
+
+struct SphereOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+}
+
+@vertex
+fn vs_sphere(@builtin(vertex_index) index: u32, @builtin(instance_index) sphere: u32) -> SphereOut {
+    let unit = sphere_mesh[index].xyz;
+    let s = spheres[sphere];
+    var out: SphereOut;
+    // Drawn a hair inside the true radius so cloth resting at the thickness is never hidden.
+    out.world = s.xyz + unit * s.w * 0.995;
+    out.normal = unit;
+    out.clip = frame.view_projection * vec4<f32>(out.world, 1.0);
+    return out;
+}
+
+@fragment
+fn fs_sphere(in: SphereOut) -> @location(0) vec4<f32> {
+    let light = normalize(frame.light.xyz);
+    let diffuse = max(dot(normalize(in.normal), light), 0.0);
+    let color = vec3<f32>(0.35, 0.55, 0.40) * (0.35 + 0.65 * diffuse);
+    return vec4<f32>(fog(color, in.world), 1.0);
+}

@@ -1,0 +1,44 @@
+//! Small scenes shared by the test suites of several crates.
+
+use std::path::Path;
+
+use crate::scene::{Scene, SceneFile};
+
+/// A free 20 x 20 cloth, 1 m wide, dropped from 1 m onto a ball of radius 0.3 m resting on the
+/// ground plane; thickness 1 cm, some friction. Built at 0.5 of the stable dt.
+pub fn cloth_onto_ball() -> Scene {
+    let text = r#"
+[mesh]
+generator = "grid"
+resolution = [20, 20]
+center = [0.0, 1.0, 0.0]
+
+[material]
+mass = { total = 0.1 }
+stiffness = 60.0
+damping = 0.002
+
+[simulation]
+dt = "auto"
+
+[collision]
+thickness = 0.01
+
+[[collider]]
+kind = "sphere"
+center = [0.1, 0.3, 0.0]
+radius = 0.3
+friction = 0.3
+
+[[collider]]
+kind = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+friction = 0.5
+"#;
+    let mut scene = SceneFile::parse(text, "cloth onto ball")
+        .and_then(|file| file.build(Path::new("cloth-onto-ball"), false))
+        .unwrap_or_else(|e| panic!("test scene: {e}"));
+    scene.params.dt = 0.5 * scene.max_stable_dt;
+    scene
+}

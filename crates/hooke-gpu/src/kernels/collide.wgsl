@@ -1,0 +1,42 @@
+// Collisions with spheres and planes (hooke_core::collide, the same rule): a vertex that ended
+// inside a collider grown by the thickness moves out along the normal, and the collider's
+// friction removes that share of the step's tangential motion. Runs after `integrate`.
+
+@group(0) @binding(0) var<uniform> u: StepUniforms;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> next_positions: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> deltas: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
+// Two entries per collider: (centre or point xyz, radius; < 0 for a plane), (normal xyz, friction).
+@group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let v = flat_index(id, groups);
+    if v >= u.vertex_count || scales[v].x <= 0.0 {
+        return;
+    }
+    let x = positions[v].xyz;
+    var p = next_positions[v].xyz;
+    for (var c = 0u; c < u.collider_count; c++) {
+        let shape = colliders[2u * c];
+        let surface = colliders[2u * c + 1u];
+        var normal = surface.xyz;
+        var depth: f32;
+        if shape.w >= 0.0 {
+            let offset = p - shape.xyz;
+            let distance = length(offset);
+            normal = select(vec3<f32>(0.0, 1.0, 0.0), offset / distance, distance > 0.0);
+            depth = shape.w + u.collision_thickness - distance;
+        } else {
+            depth = u.collision_thickness - dot(p - shape.xyz, normal);
+        }
+        if depth > 0.0 {
+            p += normal * depth;
+            let step = p - x;
+            p -= (step - normal * dot(step, normal)) * surface.w;
+        }
+    }
+    next_positions[v] = vec4<f32>(p, 1.0);
+    deltas[v] = vec4<f32>(p - x, 0.0);
+}
