@@ -207,15 +207,10 @@ fn median(mut samples: Vec<Duration>) -> f64 {
         .map_or(0.0, |d| d.as_secs_f64() * 1e3)
 }
 
-fn measure(
-    name: &str,
-    scene: &Scene,
-    solver: &mut CpuSolver,
-    args: &BenchArgs,
-    copy_pool: &rayon::ThreadPool,
-) -> anyhow::Result<Row> {
+/// Median time per step of `--steps` steps after `--warmup`, timed in batches as `hooke run`
+/// steps (a lone step would also time waking the CPU's worker threads).
+fn median_step_ms(solver: &mut dyn Solver, args: &BenchArgs) -> anyhow::Result<f64> {
     solver.step(args.warmup)?;
-    // Batches, as `hooke run` steps: a lone step would also time waking the worker threads.
     let batches = args.steps.div_ceil(STEPS_PER_SAMPLE);
     let mut totals = Vec::with_capacity(batches as usize);
     for _ in 0..batches {
@@ -223,11 +218,21 @@ fn measure(
         solver.step(STEPS_PER_SAMPLE)?;
         totals.push(start.elapsed() / STEPS_PER_SAMPLE);
     }
+    Ok(median(totals))
+}
+
+fn measure(
+    name: &str,
+    scene: &Scene,
+    solver: &mut CpuSolver,
+    args: &BenchArgs,
+    copy_pool: &rayon::ThreadPool,
+) -> anyhow::Result<Row> {
+    let total_ms = median_step_ms(solver, args)?;
     let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
     for _ in 0..args.steps {
         phases.push(solver.step_phased()?);
     }
-    let total_ms = median(totals);
     let bytes_per_step = solver.bytes_per_step();
     let bandwidth = copy_bandwidth(bytes_per_step, copy_pool);
     let method = solver.options().method;
@@ -265,15 +270,8 @@ fn measure_gpu(
     solver: &mut GpuSolver,
     args: &BenchArgs,
 ) -> anyhow::Result<Row> {
-    solver.step(args.warmup)?;
-    let batches = args.steps.div_ceil(STEPS_PER_SAMPLE);
-    let mut totals = Vec::with_capacity(batches as usize);
-    for _ in 0..batches {
-        // Includes one small status read-back per batch, as every `hooke run` batch has.
-        let start = Instant::now();
-        solver.step(STEPS_PER_SAMPLE)?;
-        totals.push(start.elapsed() / STEPS_PER_SAMPLE);
-    }
+    // On the GPU each batch includes one small status read-back, as every `hooke run` batch has.
+    let total_ms = median_step_ms(solver, args)?;
     let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
     let mut source = TimingSource::WallClock;
     for _ in 0..args.steps {
@@ -281,7 +279,6 @@ fn measure_gpu(
         phases.push(times);
         source = from;
     }
-    let total_ms = median(totals);
     let memory = solver.memory();
     let timing = match source {
         TimingSource::Timestamps => "gpu timestamps",
