@@ -48,6 +48,8 @@ impl ReferenceSolver {
         }
         let dt = params.dt;
         self.steps_taken += 1;
+        // Colliders are placed where they are at the end of this step.
+        let t = self.steps_taken as f64 * dt;
         for i in 0..model.vertex_count() {
             let x = state.positions[i];
             let x_previous = state.previous_positions[i];
@@ -56,7 +58,14 @@ impl ReferenceSolver {
             } else {
                 let total = self.forces[i] - params.damping * (x - x_previous) / dt;
                 let moved = total / model.masses[i] * dt * dt + 2.0 * x - x_previous;
-                resolve(&params.colliders, params.collision_thickness, x, moved)
+                resolve(
+                    &params.colliders,
+                    params.collision_thickness,
+                    t,
+                    dt,
+                    x,
+                    moved,
+                )
             };
             if !next.is_finite() {
                 return Err(SimError::NonFinite {

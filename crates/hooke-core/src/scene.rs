@@ -64,6 +64,9 @@ pub struct ColliderSection {
     /// Share of tangential motion removed per contact step, 0..1.
     #[serde(default)]
     pub friction: f64,
+    /// Scripted velocity (m/s): a kinematic collider moves on this straight path.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<[f64; 3]>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -749,9 +752,17 @@ impl SceneFile {
                     }
                 }
             };
+            let velocity = match c.velocity {
+                Some(v) => {
+                    finite(&field("velocity"), v)?;
+                    DVec3::from_array(v)
+                }
+                None => DVec3::ZERO,
+            };
             colliders.push(Collider {
                 shape,
                 friction: c.friction,
+                velocity,
             });
         }
         let collision_thickness = self.collision.as_ref().map_or(0.0, |c| c.thickness);

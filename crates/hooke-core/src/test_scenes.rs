@@ -42,3 +42,41 @@ friction = 0.5
     scene.params.dt = 0.5 * scene.max_stable_dt;
     scene
 }
+
+/// A 16 x 16 curtain hanging from its top edge, and a ball of radius 0.15 m moving through it
+/// along +z at 0.5 m/s (a kinematic collider); thickness 5 mm. Built at 0.5 of the stable dt.
+pub fn curtain_and_moving_ball() -> Scene {
+    let text = r#"
+[mesh]
+generator = "grid"
+resolution = [16, 16]
+plane = "xy"
+center = [0.0, 1.5, 0.0]
+
+[material]
+mass = { total = 0.1 }
+stiffness = 60.0
+damping = 0.002
+
+[pins]
+select = ["top-edge"]
+
+[simulation]
+dt = "auto"
+
+[collision]
+thickness = 0.005
+
+[[collider]]
+kind = "sphere"
+center = [0.0, 1.4, -0.3]
+radius = 0.15
+friction = 0.3
+velocity = [0.0, 0.0, 0.5]
+"#;
+    let mut scene = SceneFile::parse(text, "curtain and moving ball")
+        .and_then(|file| file.build(Path::new("curtain-and-moving-ball"), false))
+        .unwrap_or_else(|e| panic!("test scene: {e}"));
+    scene.params.dt = 0.5 * scene.max_stable_dt;
+    scene
+}

@@ -324,6 +324,11 @@ impl CpuSolver {
             return;
         }
         let (colliders, thickness) = (&self.params.colliders, self.params.collision_thickness);
+        // Colliders are placed where they are at the end of the step being finished.
+        let (dt, t) = (
+            self.params.dt,
+            (self.steps_taken + 1) as f64 * self.params.dt,
+        );
         let (current, scales) = (&self.current, &self.integrator.scales);
         let real = self.model.vertex_count();
         let [nx, ny, nz] = self.next.axes_mut();
@@ -350,7 +355,8 @@ impl CpuSolver {
                         cz[slice][lane].into(),
                     );
                     let next = DVec3::new(nx[lane].into(), ny[lane].into(), nz[lane].into());
-                    let p = hooke_core::collide::resolve(colliders, thickness, x, next).as_vec3();
+                    let p = hooke_core::collide::resolve(colliders, thickness, t, dt, x, next)
+                        .as_vec3();
                     (nx[lane], ny[lane], nz[lane]) = (p.x, p.y, p.z);
                     let d = p - x.as_vec3();
                     (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);

@@ -470,3 +470,35 @@ fn cloth_dropped_on_a_ball_never_enters_it_or_the_ground() {
         );
     }
 }
+
+#[test]
+fn a_moving_ball_pushes_through_a_curtain_without_entering_it() {
+    let scene = hooke_core::test_scenes::curtain_and_moving_ball();
+    let ball = scene.params.colliders[0];
+    let thickness = scene.params.collision_thickness;
+    for mut solver in all_solvers(&scene.model, &scene.params) {
+        let mut pushed: f64 = 0.0;
+        for _ in 0..30 {
+            solver.step(100).expect("stable");
+            let t = solver.steps_taken() as f64 * scene.params.dt;
+            let hooke_core::collide::Shape::Sphere { center, radius } = ball.at(t).shape else {
+                panic!("a sphere");
+            };
+            for p in solver.read_state().positions {
+                let clearance = p.distance(center) - radius;
+                assert!(
+                    clearance > thickness - 1e-6,
+                    "{} at t = {t}: {clearance}",
+                    solver.describe()
+                );
+                pushed = pushed.max(p.z);
+            }
+        }
+        // The ball travels from z = -0.3 to past the curtain at z = 0: it must drag cloth along.
+        assert!(
+            pushed > 0.1,
+            "{}: the curtain moved only {pushed} m",
+            solver.describe()
+        );
+    }
+}

@@ -1485,14 +1485,20 @@ impl GpuSolver {
             .iter()
             .flat_map(|c| {
                 let friction = c.friction as f32;
+                let v = c.velocity.as_vec3();
+                let velocity = [v.x, v.y, v.z, 0.0];
                 match c.shape {
                     Shape::Sphere { center, radius } => {
                         let p = center.as_vec3();
-                        [[p.x, p.y, p.z, radius as f32], [0.0, 1.0, 0.0, friction]]
+                        [
+                            [p.x, p.y, p.z, radius as f32],
+                            [0.0, 1.0, 0.0, friction],
+                            velocity,
+                        ]
                     }
                     Shape::Plane { point, normal } => {
                         let (p, n) = (point.as_vec3(), normal.as_vec3());
-                        [[p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction]]
+                        [[p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction], velocity]
                     }
                 }
             })
@@ -1512,6 +1518,7 @@ impl GpuSolver {
                     (3, self.deltas.as_entire_binding()),
                     (4, self.scales.as_entire_binding()),
                     (5, buffer.as_entire_binding()),
+                    (6, self.status.as_entire_binding()),
                 ],
             )
         });

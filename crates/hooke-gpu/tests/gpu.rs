@@ -363,3 +363,28 @@ fn cloth_dropped_on_a_ball_never_enters_it_on_the_gpu() {
         );
     }
 }
+
+#[test]
+fn a_moving_ball_pushes_through_a_curtain_on_the_gpu() {
+    let Some(context) = context() else { return };
+    let scene = hooke_core::test_scenes::curtain_and_moving_ball();
+    let ball = scene.params.colliders[0];
+    let thickness = scene.params.collision_thickness;
+    let mut solver =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let mut pushed: f64 = 0.0;
+    for _ in 0..30 {
+        solver.step(100).expect("stable");
+        let t = solver.steps_taken() as f64 * scene.params.dt;
+        let hooke_core::collide::Shape::Sphere { center, radius } = ball.at(t).shape else {
+            panic!("a sphere");
+        };
+        for p in solver.read_state().positions {
+            let clearance = p.distance(center) - radius;
+            // float32 time and position on the GPU: within 1e-5 m of the CPU's rule.
+            assert!(clearance > thickness - 1e-5, "t = {t}: {clearance}");
+            pushed = pushed.max(p.z);
+        }
+    }
+    assert!(pushed > 0.1, "the curtain moved only {pushed} m");
+}

@@ -410,7 +410,11 @@ impl Viewer {
             );
             self.pick_requested = !picking;
         }
-        self.options.wind = self.simulation.params().wind.map(|w| w.velocity.as_vec3());
+        let params = self.simulation.params();
+        self.options.wind = params.wind.map(|w| w.velocity.as_vec3());
+        let t = self.simulation.steps_taken() as f64 * params.dt;
+        let colliders: Vec<_> = params.colliders.iter().map(|c| c.at(t)).collect();
+        self.renderer.set_colliders(&self.context, &colliders);
         self.renderer.encode(
             &self.context,
             &mut encoder,

@@ -7,8 +7,11 @@
 @group(0) @binding(2) var<storage, read_write> next_positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> deltas: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
-// Two entries per collider: (centre or point xyz, radius; < 0 for a plane), (normal xyz, friction).
+// Three entries per collider: (centre or point xyz at time 0, radius; < 0 for a plane),
+// (normal xyz, friction), (scripted velocity xyz, 0).
 @group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;
+// The status buffer, read only here for its step counter (the fourth word).
+@group(0) @binding(6) var<storage, read> status_words: array<u32, 4>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -18,9 +21,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     }
     let x = positions[v].xyz;
     var p = next_positions[v].xyz;
+    let dt = 1.0 / u.inverse_dt;
+    // Colliders are placed where their script puts them at the end of this step.
+    let t = f32(status_words[3] + 1u) * dt;
     for (var c = 0u; c < u.collider_count; c++) {
-        let shape = colliders[2u * c];
-        let surface = colliders[2u * c + 1u];
+        let velocity = colliders[3u * c + 2u].xyz;
+        let shape = vec4<f32>(colliders[3u * c].xyz + velocity * t, colliders[3u * c].w);
+        let surface = colliders[3u * c + 1u];
         var normal = surface.xyz;
         var depth: f32;
         if shape.w >= 0.0 {
@@ -33,7 +40,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         }
         if depth > 0.0 {
             p += normal * depth;
-            let step = p - x;
+            let step = p - x - velocity * dt;
             p -= (step - normal * dot(step, normal)) * surface.w;
         }
     }

@@ -264,8 +264,8 @@ impl SceneRenderer {
         self.bounds
     }
 
-    /// Shows the scene's colliders: spheres are drawn, and the ground moves to the highest
-    /// horizontal plane below the cloth.
+    /// Shows the scene's colliders (placed where they are now; call again as they move):
+    /// spheres are drawn, and the ground moves to the highest horizontal plane below the cloth.
     pub fn set_colliders(&mut self, context: &GpuContext, colliders: &[Collider]) {
         let spheres: Vec<[f32; 4]> = colliders
             .iter()
@@ -277,12 +277,17 @@ impl SceneRenderer {
                 Shape::Plane { .. } => None,
             })
             .collect();
-        if !spheres.is_empty() {
+        if !spheres.is_empty() && spheres.len() as u32 == self.sphere_count {
+            // Moving colliders: same spheres, new places.
+            context
+                .queue
+                .write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
+        } else if !spheres.is_empty() {
             self.spheres = storage(
                 context,
                 "collider spheres",
                 &spheres,
-                wgpu::BufferUsages::empty(),
+                wgpu::BufferUsages::COPY_DST,
             );
         }
         self.sphere_count = spheres.len() as u32;

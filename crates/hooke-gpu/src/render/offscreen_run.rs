@@ -26,6 +26,7 @@ pub struct OffscreenRun {
     readback: wgpu::Buffer,
     pub camera: Camera,
     pub options: RenderOptions,
+    params: SimParams,
 }
 
 impl OffscreenRun {
@@ -51,6 +52,7 @@ impl OffscreenRun {
             target,
             readback,
             options,
+            params: params.clone(),
         })
     }
 
@@ -63,6 +65,9 @@ impl OffscreenRun {
                 label: Some("frame"),
             });
         self.solver.encode_steps(&mut encoder, steps);
+        let t = self.solver.steps_taken() as f64 * self.params.dt;
+        let colliders: Vec<_> = self.params.colliders.iter().map(|c| c.at(t)).collect();
+        self.renderer.set_colliders(&context, &colliders);
         self.renderer.encode(
             &context,
             &mut encoder,
