@@ -207,6 +207,27 @@ fn median(mut samples: Vec<Duration>) -> f64 {
         .map_or(0.0, |d| d.as_secs_f64() * 1e3)
 }
 
+/// Per-phase medians of phase-separated steps, ms.
+struct PhaseMedians {
+    force_calculation: f64,
+    force_accumulation: Option<f64>,
+    integration: f64,
+    total: f64,
+}
+
+impl PhaseMedians {
+    fn of(phases: &[PhaseTimes], accumulates: bool) -> Self {
+        let of = |phase: fn(&PhaseTimes) -> Duration| median(phases.iter().map(phase).collect());
+        Self {
+            force_calculation: of(|p| p.force_calculation),
+            force_accumulation: accumulates
+                .then(|| of(|p| p.force_accumulation.unwrap_or_default())),
+            integration: of(|p| p.integration),
+            total: of(PhaseTimes::total),
+        }
+    }
+}
+
 /// Median time per step of `--steps` steps after `--warmup`, timed in batches as `hooke run`
 /// steps (a lone step would also time waking the CPU's worker threads).
 fn median_step_ms(solver: &mut dyn Solver, args: &BenchArgs) -> anyhow::Result<f64> {
@@ -236,6 +257,7 @@ fn measure(
     let bytes_per_step = solver.bytes_per_step();
     let bandwidth = copy_bandwidth(bytes_per_step, copy_pool);
     let method = solver.options().method;
+    let medians = PhaseMedians::of(&phases, method == Method::Scatter);
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
@@ -244,17 +266,10 @@ fn measure(
         method: method.name().to_owned(),
         threads: solver.threads(),
         phase_timing: "wall clock",
-        force_calculation_ms: median(phases.iter().map(|p| p.force_calculation).collect()),
-        force_accumulation_ms: (method == Method::Scatter).then(|| {
-            median(
-                phases
-                    .iter()
-                    .map(|p| p.force_accumulation.unwrap_or_default())
-                    .collect(),
-            )
-        }),
-        integration_ms: median(phases.iter().map(|p| p.integration).collect()),
-        phased_total_ms: median(phases.iter().map(PhaseTimes::total).collect()),
+        force_calculation_ms: medians.force_calculation,
+        force_accumulation_ms: medians.force_accumulation,
+        integration_ms: medians.integration,
+        phased_total_ms: medians.total,
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step,
@@ -285,6 +300,7 @@ fn measure_gpu(
         TimingSource::WallClock => "wall clock",
     };
     let method = solver.method();
+    let medians = PhaseMedians::of(&phases, matches!(method, GpuMethod::Scatter(_)));
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
@@ -293,17 +309,10 @@ fn measure_gpu(
         method: method.name(),
         threads: 0,
         phase_timing: timing,
-        force_calculation_ms: median(phases.iter().map(|p| p.force_calculation).collect()),
-        force_accumulation_ms: matches!(method, GpuMethod::Scatter(_)).then(|| {
-            median(
-                phases
-                    .iter()
-                    .map(|p| p.force_accumulation.unwrap_or_default())
-                    .collect(),
-            )
-        }),
-        integration_ms: median(phases.iter().map(|p| p.integration).collect()),
-        phased_total_ms: median(phases.iter().map(PhaseTimes::total).collect()),
+        force_calculation_ms: medians.force_calculation,
+        force_accumulation_ms: medians.force_accumulation,
+        integration_ms: medians.integration,
+        phased_total_ms: medians.total,
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step: memory.total() as usize,
