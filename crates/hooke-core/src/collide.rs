@@ -36,6 +36,16 @@ pub struct Collider {
     pub velocity: DVec3,
 }
 
+impl Shape {
+    /// Signed distance from the surface to `p`, m: negative inside.
+    pub fn clearance(&self, p: DVec3) -> f64 {
+        match *self {
+            Shape::Sphere { center, radius } => p.distance(center) - radius,
+            Shape::Plane { point, normal } => (p - point).dot(normal),
+        }
+    }
+}
+
 impl Collider {
     /// The collider moved to where its script puts it at time `t`.
     pub fn at(&self, t: f64) -> Self {
