@@ -4,6 +4,16 @@ use std::path::Path;
 
 use crate::scene::{Scene, SceneFile};
 
+/// Builds a scene from TOML text and runs it at half the stable time step (test scenes compare
+/// solvers, so they stay well inside the bound).
+fn build(text: &str, name: &str) -> Scene {
+    let mut scene = SceneFile::parse(text, name)
+        .and_then(|file| file.build(Path::new(name), false))
+        .unwrap_or_else(|e| panic!("test scene {name}: {e}"));
+    scene.params.dt = 0.5 * scene.max_stable_dt;
+    scene
+}
+
 /// A free 20 x 20 cloth, 1 m wide, dropped from 1 m onto a ball of radius 0.3 m resting on the
 /// ground plane; thickness 1 cm, some friction. Built at 0.5 of the stable dt.
 pub fn cloth_onto_ball() -> Scene {
@@ -36,11 +46,7 @@ point = [0.0, 0.0, 0.0]
 normal = [0.0, 1.0, 0.0]
 friction = 0.5
 "#;
-    let mut scene = SceneFile::parse(text, "cloth onto ball")
-        .and_then(|file| file.build(Path::new("cloth-onto-ball"), false))
-        .unwrap_or_else(|e| panic!("test scene: {e}"));
-    scene.params.dt = 0.5 * scene.max_stable_dt;
-    scene
+    build(text, "cloth-onto-ball")
 }
 
 /// A 16 x 16 curtain hanging from its top edge, and a ball of radius 0.15 m moving through it
@@ -74,9 +80,5 @@ radius = 0.15
 friction = 0.3
 velocity = [0.0, 0.0, 0.5]
 "#;
-    let mut scene = SceneFile::parse(text, "curtain and moving ball")
-        .and_then(|file| file.build(Path::new("curtain-and-moving-ball"), false))
-        .unwrap_or_else(|e| panic!("test scene: {e}"));
-    scene.params.dt = 0.5 * scene.max_stable_dt;
-    scene
+    build(text, "curtain-and-moving-ball")
 }
