@@ -28,6 +28,8 @@ enum Command {
     Bench(commands::bench::BenchArgs),
     /// Compare every method and accumulation precision with the float64 reference.
     Accuracy(commands::accuracy::AccuracyArgs),
+    /// Measure what approximate self-collision misses and costs against an exact search.
+    SelfcollisionStudy(commands::selfcollision_study::StudyArgs),
     /// Simulate on the GPU and draw offscreen: PNG frames, one PNG, or an MP4 (with ffmpeg).
     Render(commands::render::RenderArgs),
     /// Open the interactive viewer: drag the cloth, change parameters live.
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
         Command::Info(args) => commands::info::run(&args),
         Command::Bench(args) => commands::bench::run(&args),
         Command::Accuracy(args) => commands::accuracy::run(&args),
+        Command::SelfcollisionStudy(args) => commands::selfcollision_study::run(&args),
         Command::Render(args) => commands::render::run(&args),
         Command::View(args) => viewer::run(args),
     };

@@ -10,6 +10,7 @@ mod model;
 mod params;
 pub mod reference;
 pub mod scene;
+pub mod selfcollide;
 mod solver;
 pub mod stability;
 mod state;

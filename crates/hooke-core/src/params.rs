@@ -14,6 +14,7 @@
 use glam::DVec3;
 
 use crate::collide::Collider;
+use crate::selfcollide::SelfCollision;
 
 /// A constant force on one vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,6 +59,8 @@ pub struct SimParams {
     pub colliders: Vec<Collider>,
     /// How far from a collider's surface the cloth is held, m (its half thickness).
     pub collision_thickness: f64,
+    /// Approximate self-collision by binning (see [`crate::selfcollide`]); off when `None`.
+    pub self_collision: Option<SelfCollision>,
 }
 
 impl Default for SimParams {
@@ -71,6 +74,7 @@ impl Default for SimParams {
             drags: Vec::new(),
             colliders: Vec::new(),
             collision_thickness: 0.0,
+            self_collision: None,
         }
     }
 }

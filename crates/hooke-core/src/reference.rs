@@ -4,11 +4,12 @@
 //! `F_tot = F_ext - sum_j F_ij - c (x(t) - x(t-dt))/dt`, then Verlet (eq. 3)
 //! `x(t+dt) = F_tot/m dt^2 + 2 x(t) - x(t-dt)`. Pinned vertices keep their position.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 use crate::collide::resolve;
 use crate::diagnostics::spring_force_on_a;
 use crate::forces::add_external_forces;
+use crate::selfcollide::{self, SelfCollision};
 use crate::{Model, SimError, SimParams, Solver, State};
 
 #[derive(Debug)]
@@ -76,7 +77,23 @@ impl ReferenceSolver {
             state.previous_positions[i] = x;
             state.positions[i] = next;
         }
+        if let Some(config) = &params.self_collision {
+            resolve_self_collisions(model, state, config);
+        }
         Ok(())
+    }
+}
+
+/// Self-collision in float32, the arithmetic every solver shares (see [`crate::selfcollide`]),
+/// its corrections applied to the float64 state.
+fn resolve_self_collisions(model: &Model, state: &mut State, config: &SelfCollision) {
+    let rounded: Vec<Vec3> = state.positions.iter().map(|p| p.as_vec3()).collect();
+    let mut moved = rounded.clone();
+    let mut deltas = vec![Vec3::ZERO; moved.len()];
+    let weights = selfcollide::inverse_masses(model);
+    selfcollide::resolve(&mut moved, &mut deltas, &weights, &model.adjacency, config);
+    for (p, (after, before)) in state.positions.iter_mut().zip(moved.iter().zip(&rounded)) {
+        *p += (*after - *before).as_dvec3();
     }
 }
 

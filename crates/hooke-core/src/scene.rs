@@ -11,6 +11,7 @@ use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::collide::{Collider, Shape};
 use crate::mesh::{self, GridPlane, Mesh, MeshWarning};
+use crate::selfcollide::{self, SelfCollision};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
 use crate::{Drag, MassModel, Model, ModelOptions, PointForce, SimParams, StiffnessModel, Wind};
 
@@ -39,6 +40,37 @@ pub struct SceneFile {
     pub colliders: Vec<ColliderSection>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub collision: Option<CollisionSection>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub self_collision: Option<SelfCollisionSection>,
+}
+
+/// Approximate self-collision by binning (see `hooke_core::selfcollide`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SelfCollisionSection {
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// Unjoined vertices are kept this far apart, m.
+    pub distance: f64,
+    /// Grid cell edge, m; defaults to twice `distance` (see `hooke selfcollision-study`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell_size: Option<f64>,
+    /// Staggered grids, 1..=16.
+    #[serde(default = "default_grids")]
+    pub grids: u32,
+    /// Vertices tested on each side in sorted order, 1..=64.
+    #[serde(default = "default_window")]
+    pub window: u32,
+}
+
+fn yes() -> bool {
+    true
+}
+fn default_grids() -> u32 {
+    4
+}
+fn default_window() -> u32 {
+    4
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -411,6 +443,7 @@ impl SceneFile {
             drags: Vec::new(),
             colliders: Vec::new(),
             collision: None,
+            self_collision: None,
         }
     }
 
@@ -775,6 +808,7 @@ impl SceneFile {
                 )
             },
         )?;
+        let self_collision = self.self_collision_params(invalid)?;
         Ok(SimParams {
             dt: 0.0,
             damping: self.material.damping,
@@ -784,7 +818,45 @@ impl SceneFile {
             drags,
             colliders,
             collision_thickness,
+            self_collision,
         })
+    }
+
+    fn self_collision_params(
+        &self,
+        invalid: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<Option<SelfCollision>, SceneError> {
+        let Some(section) = self.self_collision.as_ref().filter(|s| s.enabled) else {
+            return Ok(None);
+        };
+        let positive = |name: &str, value: f64| {
+            require(value > 0.0 && value.is_finite(), || {
+                invalid(
+                    &format!("self_collision.{name}"),
+                    format!("must be a positive number, found {value}"),
+                )
+            })
+        };
+        positive("distance", section.distance)?;
+        let cell_size = section.cell_size.unwrap_or(2.0 * section.distance);
+        positive("cell_size", cell_size)?;
+        for (name, value, max) in [
+            ("grids", section.grids, selfcollide::MAX_GRIDS),
+            ("window", section.window, selfcollide::MAX_WINDOW),
+        ] {
+            require((1..=max).contains(&value), || {
+                invalid(
+                    &format!("self_collision.{name}"),
+                    format!("must be 1..={max}, found {value}"),
+                )
+            })?;
+        }
+        Ok(Some(SelfCollision {
+            distance: section.distance,
+            cell_size,
+            grids: section.grids,
+            window: section.window,
+        }))
     }
 }
 

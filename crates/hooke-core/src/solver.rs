@@ -13,6 +13,8 @@ pub struct PhaseTimes {
     /// Scatter only: summing each vertex's spring forces.
     pub force_accumulation: Option<Duration>,
     pub integration: Duration,
+    /// Colliders and self-collision (zero when there are none).
+    pub collision: Duration,
 }
 
 impl PhaseTimes {
@@ -21,6 +23,7 @@ impl PhaseTimes {
             + self.force_calculation
             + self.force_accumulation.unwrap_or_default()
             + self.integration
+            + self.collision
     }
 }
 

@@ -20,9 +20,9 @@ pub mod simd;
 
 use std::time::Instant;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 pub use hooke_core::PhaseTimes;
-use hooke_core::{Model, SimError, SimParams, Solver, State};
+use hooke_core::{Model, SimError, SimParams, Solver, State, selfcollide};
 use rayon::prelude::*;
 
 use external::ExternalForces;
@@ -134,6 +134,8 @@ pub struct CpuSolver {
     next: Soa,
     /// `x(t) - x(t - dt)`, updated in place (see [`kernels`] for why not `x(t - dt)`).
     delta: Soa,
+    /// Self-collision weights by mesh vertex.
+    inverse_masses: Vec<f32>,
     steps_taken: u64,
 }
 
@@ -190,6 +192,7 @@ impl CpuSolver {
             current: Soa::zeros(slices),
             next: Soa::zeros(slices),
             delta: Soa::zeros(slices),
+            inverse_masses: selfcollide::inverse_masses(model),
             model: model.clone(),
             steps_taken: 0,
         };
@@ -314,7 +317,35 @@ impl CpuSolver {
             }
         };
         self.collide();
+        self.self_collide();
         self.finish_step(all_finite)
+    }
+
+    /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
+    /// mesh order so every solver sorts the same keys the same way.
+    fn self_collide(&mut self) {
+        let Some(config) = self.params.self_collision else {
+            return;
+        };
+        let internal = &self.numbering.internal;
+        let read = |soa: &Soa| -> Vec<Vec3> {
+            internal
+                .iter()
+                .map(|&k| Vec3::from_array(soa.get(k as usize)))
+                .collect()
+        };
+        let (mut positions, mut deltas) = (read(&self.next), read(&self.delta));
+        selfcollide::resolve(
+            &mut positions,
+            &mut deltas,
+            &self.inverse_masses,
+            &self.model.adjacency,
+            &config,
+        );
+        for (v, &k) in internal.iter().enumerate() {
+            self.next.set(k as usize, positions[v].to_array());
+            self.delta.set(k as usize, deltas[v].to_array());
+        }
     }
 
     /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in
@@ -412,8 +443,11 @@ impl CpuSolver {
             all_finite
         });
         let start = Instant::now();
-        pool.install(|| self.collide());
-        times.integration += start.elapsed();
+        pool.install(|| {
+            self.collide();
+            self.self_collide();
+        });
+        times.collision = start.elapsed();
         self.finish_step(all_finite)?;
         Ok(times)
     }

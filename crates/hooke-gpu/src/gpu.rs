@@ -27,6 +27,17 @@ pub fn storage<T: bytemuck::Pod>(
         })
 }
 
+/// A uniform buffer holding `value`.
+pub fn uniform<T: bytemuck::Pod>(context: &GpuContext, value: &T) -> wgpu::Buffer {
+    context
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("uniforms"),
+            contents: bytemuck::bytes_of(value),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
 /// A zeroed storage buffer of `bytes` bytes (at least 16).
 pub fn zeroed(
     context: &GpuContext,
@@ -136,6 +147,17 @@ pub fn dispatch(
         label: Some(label),
         timestamp_writes,
     });
+    dispatch_in(&mut pass, pipeline, bind_group, count);
+}
+
+/// Records `pipeline` over `count` invocations into an open pass (dispatches within a pass
+/// see each other's writes, so a chain of kernels can share one pass and one timestamp pair).
+pub fn dispatch_in(
+    pass: &mut wgpu::ComputePass<'_>,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    count: u32,
+) {
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, bind_group, &[]);
     let (x, y) = workgroups(count);

@@ -76,13 +76,41 @@ impl GpuStatus {
     }
 }
 
+/// One radix-sort pass's constants (`SortUniforms` in `radix_sort.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct SortUniforms {
+    pub count: u32,
+    /// The pass sorts on bits `shift..shift + 4` of the key.
+    pub shift: u32,
+    pub block_count: u32,
+    pub pad: u32,
+}
+
+/// One self-collision grid's constants (`SelfUniforms` in `self_collide.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SelfUniforms {
+    pub vertex_count: u32,
+    pub window: u32,
+    pub distance: f32,
+    pub inverse_cell: f32,
+    /// The grid's shift along each axis, in cells.
+    pub offset: f32,
+    pub key_bits: u32,
+    pub pad: [u32; 2],
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// (size, member offsets) of a struct as naga lays it out for WGSL.
     fn wgsl_layout(name: &str) -> (u32, Vec<u32>) {
-        let source = crate::kernels::FORCE_GATHER;
+        layout_in(crate::kernels::FORCE_GATHER, name)
+    }
+
+    fn layout_in(source: &str, name: &str) -> (u32, Vec<u32>) {
         let module = naga::front::wgsl::parse_str(source).expect("parses");
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("layout");
@@ -127,5 +155,11 @@ mod tests {
         assert_eq!(size as usize, size_of::<GatherEntry>());
         let (size, _) = wgsl_layout("Status");
         assert_eq!(size as usize, size_of::<GpuStatus>());
+        let (size, offsets) = layout_in(crate::kernels::RADIX_SORT, "SortUniforms");
+        assert_eq!(size as usize, size_of::<SortUniforms>());
+        assert_eq!(offsets, [0, 4, 8, 12]);
+        let (size, offsets) = layout_in(crate::kernels::SELF_COLLIDE, "SelfUniforms");
+        assert_eq!(size as usize, size_of::<SelfUniforms>());
+        assert_eq!(offsets[..6], [0, 4, 8, 12, 16, 20]);
     }
 }

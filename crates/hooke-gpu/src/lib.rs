@@ -5,7 +5,9 @@ mod context;
 pub mod gpu;
 mod kernels;
 pub mod layout;
+pub mod radix_sort;
 pub mod render;
+mod self_collide;
 mod solver;
 
 pub use context::{

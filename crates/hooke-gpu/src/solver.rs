@@ -15,6 +15,7 @@ use hooke_core::collide::Shape;
 use hooke_core::{Model, PhaseTimes, SimError, SimParams, Solver, State};
 
 use crate::context::{GpuContext, GpuError};
+use crate::self_collide::{SelfCollidePass, SolverBuffers};
 use crate::gpu::{self, bind_group, compute_pipeline, dispatch, read_back, storage, zeroed};
 use crate::kernels;
 use crate::layout::{GatherEntry, GpuSpring, GpuStatus, StepUniforms};
@@ -165,6 +166,7 @@ enum Phase {
     Force,
     Accumulation,
     Integration,
+    Collision,
 }
 
 /// Static data of the force and accumulation passes.
@@ -237,6 +239,7 @@ pub struct GpuSolver {
     external: Option<ExternalPass>,
     /// The collision pass and its bind groups (by current buffer), when the scene has colliders.
     collide: Option<(wgpu::ComputePipeline, [wgpu::BindGroup; 2])>,
+    self_collide: Option<SelfCollidePass>,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     steps_taken: u64,
 }
@@ -373,6 +376,7 @@ impl GpuSolver {
             tick_group,
             external: None,
             collide: None,
+            self_collide: None,
             timestamps,
             steps_taken: 0,
         };
@@ -407,7 +411,9 @@ impl GpuSolver {
         GpuMemory {
             positions: 3 * vec4s(n),
             topology: self.topology_bytes,
-            per_step: self.per_step_bytes + self.external.as_ref().map_or(0, |e| e.bytes),
+            per_step: self.per_step_bytes
+                + self.external.as_ref().map_or(0, |e| e.bytes)
+                + self.self_collide.as_ref().map_or(0, |p| p.bytes()),
         }
     }
 
@@ -511,8 +517,11 @@ impl GpuSolver {
             writes,
         );
         if let Some((pipeline, groups)) = &self.collide {
-            let writes = PassTimer::next(timer, Phase::Integration);
+            let writes = PassTimer::next(timer, Phase::Collision);
             dispatch(encoder, "collide", pipeline, &groups[current], n, writes);
+        }
+        if let Some(pass) = &self.self_collide {
+            pass.encode(encoder, current, PassTimer::next(timer, Phase::Collision));
         }
         dispatch(encoder, "tick", &self.tick, &self.tick_group, 1, None);
     }
@@ -752,6 +761,7 @@ impl GpuSolver {
             force_accumulation: matches!(self.method, GpuMethod::Scatter(_))
                 .then_some(Duration::ZERO),
             integration: Duration::ZERO,
+            collision: Duration::ZERO,
         }
     }
 
@@ -840,8 +850,13 @@ impl GpuSolver {
                 n,
                 None,
             );
+        })?;
+        times.collision = submit("collision", &|e| {
             if let Some((pipeline, groups)) = &self.collide {
                 dispatch(e, "collide", pipeline, &groups[current], n, None);
+            }
+            if let Some(pass) = &self.self_collide {
+                pass.encode(e, current, None);
             }
             dispatch(e, "tick", &self.tick, &self.tick_group, 1, None);
         })?;
@@ -855,6 +870,7 @@ fn add_phase(times: &mut PhaseTimes, phase: &Phase, duration: Duration) {
         Phase::Force => times.force_calculation += duration,
         Phase::Accumulation => *times.force_accumulation.get_or_insert(Duration::ZERO) += duration,
         Phase::Integration => times.integration += duration,
+        Phase::Collision => times.collision += duration,
     }
 }
 
@@ -1557,6 +1573,19 @@ impl GpuSolver {
         self.collide = self.build_collide(params)?;
         self.uniforms.collider_count = params.colliders.len() as u32;
         self.uniforms.collision_thickness = params.collision_thickness as f32;
+        self.self_collide = match &params.self_collision {
+            Some(config) => Some(SelfCollidePass::new(
+                &self.context,
+                &self.model,
+                config,
+                SolverBuffers {
+                    positions: &self.positions,
+                    deltas: &self.deltas,
+                    scales: &self.scales,
+                },
+            )?),
+            None => None,
+        };
         self.write_uniforms();
         self.context.take_error()
     }

@@ -1,5 +1,6 @@
 //! The viewer's side panel: solver, parameters, display options and statistics.
 
+use hooke_core::selfcollide;
 use hooke_gpu::render::{Camera, RenderOptions, SceneBounds};
 
 use super::simulation::Simulation;
@@ -106,6 +107,27 @@ pub fn show(
                     )
                     .changed();
             });
+            ui.separator();
+            changed |= ui
+                .checkbox(&mut simulation.self_collision_enabled, "self-collision")
+                .changed();
+            ui.add_enabled_ui(simulation.self_collision_enabled, |ui| {
+                changed |= ui
+                    .add(
+                        egui::Slider::new(
+                            &mut simulation.self_collision.grids,
+                            1..=selfcollide::MAX_GRIDS,
+                        )
+                        .text("staggered grids K"),
+                    )
+                    .changed();
+                changed |= ui
+                    .add(
+                        egui::Slider::new(&mut simulation.self_collision.window, 1..=16)
+                            .text("window"),
+                    )
+                    .changed();
+            });
             if changed {
                 simulation.apply_params();
             }
@@ -126,11 +148,12 @@ pub fn show(
             if let Some((p, source)) = simulation.phases {
                 let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
                 ui.label(format!(
-                    "force {:.3} ms, accumulation {}, integration {:.3} ms ({:?})",
+                    "force {:.3} ms, accumulation {}, integration {:.3} ms, collision {:.3} ms ({:?})",
                     ms(p.force_calculation),
                     p.force_accumulation
                         .map_or("-".to_owned(), |a| format!("{:.3} ms", ms(a))),
                     ms(p.integration),
+                    ms(p.collision),
                     source
                 ));
             }

@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
+use hooke_core::selfcollide::SelfCollision;
 use hooke_core::scene::Scene;
 use hooke_core::stability::stability_limit;
 use hooke_core::{Drag, Model, PhaseTimes, SimParams, Solver, State, Wind};
@@ -70,6 +71,9 @@ pub struct Simulation {
     pub wind_heading_degrees: f64,
     pub wind_speed: f64,
     pub wind_coefficient: f64,
+    pub self_collision_enabled: bool,
+    /// The scene's self-collision setting, or one made for the mesh.
+    pub self_collision: SelfCollision,
     pub paused: bool,
     pub step_once: bool,
     pub grab: Option<(u32, Vec3)>,
@@ -112,6 +116,11 @@ impl Simulation {
             wind_heading_degrees: heading,
             wind_speed: speed,
             wind_coefficient: wind.map_or(0.5, |w| w.coefficient),
+            self_collision_enabled: scene.params.self_collision.is_some(),
+            self_collision: scene
+                .params
+                .self_collision
+                .unwrap_or_else(|| SelfCollision::for_model(&scene.model)),
             stiffness_scale: 1.0,
             stiffness_changed: false,
             steps_per_frame: 10,
@@ -192,6 +201,7 @@ impl Simulation {
                 .collect(),
             colliders: self.scene.params.colliders.clone(),
             collision_thickness: self.scene.params.collision_thickness,
+            self_collision: self.self_collision_enabled.then_some(self.self_collision),
         }
     }
 

@@ -1,0 +1,410 @@
+//! Approximate self-collision by binning (paper Section 5, after Kipfer et al. 2004), and the
+//! exact search that measures what it misses.
+//!
+//! One pass per grid: every vertex gets the key of the grid cell holding it, a stable sort by
+//! key puts vertices of the same cell next to each other, and each vertex is tested against the
+//! `window` vertices on either side of it in sorted order. A pair closer than `distance` that no
+//! spring joins is pushed apart to `distance`, each end by its share of the inverse masses (a
+//! pinned end does not move), in the Verlet scheme's way: the new position moves and the
+//! step's motion with it, so the pair stops approaching rather than bouncing.
+//!
+//! Grids are staggered: grid `k` of `K` is shifted by `k / K` of a cell along the diagonal
+//! `(1, 1, 1)`, so two points that straddle a face of one grid's cell usually share a cell of
+//! another. The passes run one after another on the corrected positions, so a pair found by
+//! two grids is corrected once.
+//!
+//! Keys hash the cell's integer coordinates (Teschner et al. 2003) into `key_bits` bits, so the
+//! grid needs no bounds; a hash collision only puts unrelated points in the window, where the
+//! distance test rejects them. Everything here is float32, the same arithmetic as the GPU's
+//! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
+
+use std::collections::HashMap;
+
+use glam::{IVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::{Adjacency, Model};
+
+/// How self-collision is found and resolved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelfCollision {
+    /// Non-adjacent vertices are kept at least this far apart, m (the cloth's thickness).
+    pub distance: f64,
+    /// Edge of a grid cell, m.
+    pub cell_size: f64,
+    /// Staggered grids `K`, one pass each.
+    pub grids: u32,
+    /// Vertices tested on each side of a vertex in sorted order.
+    pub window: u32,
+}
+
+/// Largest `K` accepted (passes per step grow with it).
+pub const MAX_GRIDS: u32 = 16;
+/// Largest window accepted.
+pub const MAX_WINDOW: u32 = 64;
+
+impl SelfCollision {
+    /// A setting for a model whose scene names none: vertices kept half the shortest spring
+    /// apart, cells twice as wide, 4 grids, a window of 4.
+    pub fn for_model(model: &Model) -> Self {
+        let shortest = model
+            .rest_lengths
+            .iter()
+            .copied()
+            .filter(|l| *l > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let distance = if shortest.is_finite() { 0.5 * shortest } else { 0.01 };
+        Self {
+            distance,
+            cell_size: 2.0 * distance,
+            grids: 4,
+            window: 4,
+        }
+    }
+
+    /// Shift of grid `k`, in cells, along each axis.
+    pub fn grid_offset(&self, k: u32) -> f32 {
+        k as f32 / self.grids as f32
+    }
+}
+
+/// Key bits for `vertices` points: a table of at least twice as many keys as points, rounded
+/// up to whole bytes so the 4-bit radix sort runs an even number of passes.
+pub fn key_bits(vertices: usize) -> u32 {
+    let needed = (2 * vertices.max(128)).next_power_of_two().trailing_zeros();
+    (needed.div_ceil(8) * 8).min(32)
+}
+
+/// The cell of `p` in a grid of cells `1 / inverse_cell` wide shifted by `offset` cells.
+pub fn cell_of(p: Vec3, inverse_cell: f32, offset: f32) -> IVec3 {
+    (p * inverse_cell + Vec3::splat(offset)).floor().as_ivec3()
+}
+
+/// The sort key of `cell`: its coordinates hashed into `bits` bits.
+pub fn cell_key(cell: IVec3, bits: u32) -> u32 {
+    let hash = (cell.x as u32).wrapping_mul(73_856_093)
+        ^ (cell.y as u32).wrapping_mul(19_349_663)
+        ^ (cell.z as u32).wrapping_mul(83_492_791);
+    if bits >= 32 {
+        hash
+    } else {
+        hash & ((1 << bits) - 1)
+    }
+}
+
+/// Weights for [`resolve`]: inverse masses, zero for pinned vertices.
+pub fn inverse_masses(model: &Model) -> Vec<f32> {
+    model
+        .masses
+        .iter()
+        .zip(&model.pinned)
+        .map(|(m, pinned)| if *pinned { 0.0 } else { (1.0 / m) as f32 })
+        .collect()
+}
+
+/// Stable sort of vertex indices by key: `(sorted keys, vertices in sorted order)`.
+pub fn sort_by_key(keys: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let mut order: Vec<u32> = (0..keys.len() as u32).collect();
+    order.par_sort_by_key(|&v| keys[v as usize]);
+    (order.iter().map(|&v| keys[v as usize]).collect(), order)
+}
+
+/// True if a spring joins `a` and `b`.
+pub fn joined(adjacency: &Adjacency, a: u32, b: u32) -> bool {
+    let row = adjacency.offsets[a as usize] as usize..adjacency.offsets[a as usize + 1] as usize;
+    adjacency.neighbors[row].contains(&b)
+}
+
+/// The vertices of one grid in sorted order.
+fn sorted_for_grid(positions: &[Vec3], config: &SelfCollision, k: u32) -> Vec<u32> {
+    let inverse_cell = (1.0 / config.cell_size) as f32;
+    let (offset, bits) = (config.grid_offset(k), key_bits(positions.len()));
+    let keys: Vec<u32> = positions
+        .par_iter()
+        .map(|&p| cell_key(cell_of(p, inverse_cell, offset), bits))
+        .collect();
+    sort_by_key(&keys).1
+}
+
+/// The window of sorted slot `j`: slots within `window` of it, itself excluded.
+fn window_of(j: usize, window: u32, len: usize) -> impl Iterator<Item = usize> {
+    let w = window as usize;
+    (j.saturating_sub(w)..(j + w + 1).min(len)).filter(move |&m| m != j)
+}
+
+/// Resolves self-collisions in place: `K` passes, each moving `positions` (and `deltas`, the
+/// step's motion) of vertices closer than `config.distance` to an unjoined window neighbour.
+/// `weights` are the inverse masses (any common scale; zero for a pinned vertex).
+pub fn resolve(
+    positions: &mut [Vec3],
+    deltas: &mut [Vec3],
+    weights: &[f32],
+    adjacency: &Adjacency,
+    config: &SelfCollision,
+) {
+    let distance = config.distance as f32;
+    for k in 0..config.grids {
+        let order = sorted_for_grid(positions, config, k);
+        let current = &*positions;
+        let corrections: Vec<(u32, Vec3)> = order
+            .par_iter()
+            .enumerate()
+            .map(|(j, &p)| {
+                let mut correction = Vec3::ZERO;
+                let wp = weights[p as usize];
+                if wp > 0.0 {
+                    for m in window_of(j, config.window, order.len()) {
+                        let q = order[m];
+                        correction += push(current, weights, adjacency, distance, p, q, wp);
+                    }
+                }
+                (p, correction)
+            })
+            .collect();
+        for (p, c) in corrections {
+            positions[p as usize] += c;
+            deltas[p as usize] += c;
+        }
+    }
+}
+
+/// How far `p` moves away from `q` (zero unless they are unjoined and too close).
+fn push(
+    positions: &[Vec3],
+    weights: &[f32],
+    adjacency: &Adjacency,
+    distance: f32,
+    p: u32,
+    q: u32,
+    wp: f32,
+) -> Vec3 {
+    let d = positions[p as usize] - positions[q as usize];
+    let l2 = d.dot(d);
+    if l2 >= distance * distance || joined(adjacency, p, q) {
+        return Vec3::ZERO;
+    }
+    let share = wp / (wp + weights[q as usize]);
+    if l2 == 0.0 {
+        // Coincident: part them vertically, the lower index going up.
+        let sign = if p < q { 1.0 } else { -1.0 };
+        return Vec3::Y * (sign * share * distance);
+    }
+    let l = l2.sqrt();
+    d * (share * (distance - l) / l)
+}
+
+/// Unordered pair `(low, high)`.
+fn pair(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+/// The pairs the binning finds (detection only, every grid on the same positions), sorted.
+pub fn approximate_pairs(
+    positions: &[Vec3],
+    adjacency: &Adjacency,
+    config: &SelfCollision,
+) -> Vec<(u32, u32)> {
+    let distance = config.distance as f32;
+    let mut pairs: Vec<(u32, u32)> = (0..config.grids)
+        .flat_map(|k| {
+            let order = sorted_for_grid(positions, config, k);
+            let mut found = Vec::new();
+            for (j, &p) in order.iter().enumerate() {
+                for m in window_of(j, config.window, order.len()) {
+                    let q = order[m];
+                    if p < q && close_and_unjoined(positions, adjacency, distance, p, q) {
+                        found.push((p, q));
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+fn close_and_unjoined(
+    positions: &[Vec3],
+    adjacency: &Adjacency,
+    distance: f32,
+    a: u32,
+    b: u32,
+) -> bool {
+    positions[a as usize].distance_squared(positions[b as usize]) < distance * distance
+        && !joined(adjacency, a, b)
+}
+
+/// Every unjoined pair closer than `distance`, exactly: a hash grid of cells `distance` wide
+/// searched over each point's 27 neighbouring cells. Sorted.
+pub fn exact_pairs(positions: &[Vec3], adjacency: &Adjacency, distance: f64) -> Vec<(u32, u32)> {
+    let inverse_cell = (1.0 / distance) as f32;
+    let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::new();
+    for (v, &p) in positions.iter().enumerate() {
+        cells
+            .entry(cell_of(p, inverse_cell, 0.0))
+            .or_default()
+            .push(v as u32);
+    }
+    let distance = distance as f32;
+    let mut pairs: Vec<(u32, u32)> = (0..positions.len() as u32)
+        .into_par_iter()
+        .flat_map_iter(|a| {
+            let home = cell_of(positions[a as usize], inverse_cell, 0.0);
+            let mut found = Vec::new();
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let Some(members) = cells.get(&(home + IVec3::new(dx, dy, dz))) else {
+                            continue;
+                        };
+                        for &b in members {
+                            if a < b && close_and_unjoined(positions, adjacency, distance, a, b) {
+                                found.push(pair(a, b));
+                            }
+                        }
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs
+}
+
+/// Every unjoined pair closer than `distance` by testing all pairs (the exact search's oracle).
+pub fn brute_force_pairs(
+    positions: &[Vec3],
+    adjacency: &Adjacency,
+    distance: f64,
+) -> Vec<(u32, u32)> {
+    let n = positions.len() as u32;
+    let distance = distance as f32;
+    (0..n)
+        .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+        .filter(|&(a, b)| close_and_unjoined(positions, adjacency, distance, a, b))
+        .collect()
+}
+
+/// Mean vertices per occupied cell of `config`'s first grid (how crowded the cells are).
+pub fn vertices_per_cell(positions: &[Vec3], config: &SelfCollision) -> f64 {
+    let inverse_cell = (1.0 / config.cell_size) as f32;
+    let mut cells: Vec<IVec3> = positions
+        .iter()
+        .map(|&p| cell_of(p, inverse_cell, 0.0))
+        .collect();
+    cells.sort_unstable_by_key(|c| (c.x, c.y, c.z));
+    cells.dedup();
+    positions.len() as f64 / cells.len().max(1) as f64
+}
+
+/// Share of `exact` pairs missing from `found` (both sorted); zero when there are none.
+pub fn missed_share(exact: &[(u32, u32)], found: &[(u32, u32)]) -> f64 {
+    if exact.is_empty() {
+        return 0.0;
+    }
+    let missed = exact
+        .iter()
+        .filter(|p| found.binary_search(p).is_err())
+        .count();
+    missed as f64 / exact.len() as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    fn no_springs(n: usize) -> Adjacency {
+        Adjacency::from_springs(n, &[])
+    }
+
+    fn random_cloud(n: usize, seed: u64) -> Vec<Vec3> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..n)
+            .map(|_| Vec3::new(rng.random(), rng.random::<f32>() * 0.3, rng.random()))
+            .collect()
+    }
+
+    #[test]
+    fn exact_search_equals_brute_force() {
+        for (seed, distance) in [(1, 0.03), (2, 0.05), (3, 0.11)] {
+            let points = random_cloud(1500, seed);
+            // Join some near pairs by springs: they must be left out by both.
+            let ends: Vec<[u32; 2]> = (0..200).map(|i| [2 * i, 2 * i + 1]).collect();
+            let adjacency = Adjacency::from_springs(points.len(), &ends);
+            let exact = exact_pairs(&points, &adjacency, distance);
+            assert!(exact.len() > 50, "the test needs pairs, found {}", exact.len());
+            assert_eq!(exact, brute_force_pairs(&points, &adjacency, distance));
+        }
+    }
+
+    #[test]
+    fn sort_is_stable_and_ordered() {
+        let keys = [5, 1, 5, 0, 1, 5];
+        let (sorted, order) = sort_by_key(&keys);
+        assert_eq!(sorted, [0, 1, 1, 5, 5, 5]);
+        assert_eq!(order, [3, 1, 4, 0, 2, 5]);
+    }
+
+    #[test]
+    fn more_grids_miss_fewer_pairs() {
+        let points = random_cloud(4000, 7);
+        let adjacency = no_springs(points.len());
+        let config = |grids| SelfCollision {
+            distance: 0.03,
+            cell_size: 0.06,
+            grids,
+            window: 8,
+        };
+        let exact = exact_pairs(&points, &adjacency, 0.03);
+        let one = missed_share(&exact, &approximate_pairs(&points, &adjacency, &config(1)));
+        let four = missed_share(&exact, &approximate_pairs(&points, &adjacency, &config(4)));
+        // One grid misses every pair split by a cell face; staggered grids recover most.
+        assert!(one > 0.2, "one grid missed {one}");
+        assert!(four < one / 2.0, "four grids missed {four}, one {one}");
+        // Found pairs are real pairs.
+        let found = approximate_pairs(&points, &adjacency, &config(4));
+        assert!(found.iter().all(|p| exact.binary_search(p).is_ok()));
+    }
+
+    #[test]
+    fn resolving_parts_close_pairs_and_leaves_pins_and_springs() {
+        let points = vec![
+            Vec3::ZERO,
+            Vec3::new(0.01, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 0.015),
+            Vec3::new(5.0, 0.0, 0.0),
+        ];
+        // Vertex 2 is pinned; vertices 0 and 2 are joined by a spring.
+        let adjacency = Adjacency::from_springs(4, &[[0, 2]]);
+        let weights = [1.0, 1.0, 0.0, 1.0];
+        let config = SelfCollision {
+            distance: 0.04,
+            cell_size: 0.1,
+            grids: 1,
+            window: 3,
+        };
+        let mut moved = points.clone();
+        let mut deltas = vec![Vec3::ZERO; 4];
+        resolve(&mut moved, &mut deltas, &weights, &adjacency, &config);
+        // 0 and 1 share the push equally; 1 also leaves pinned 2 by itself.
+        assert_eq!(moved[2], points[2]);
+        assert!(moved[0].distance(moved[1]) > 0.035);
+        assert!(moved[1].distance(moved[2]) > 0.0399);
+        assert_eq!(moved[3], points[3]);
+        for v in 0..4 {
+            assert!((deltas[v] - (moved[v] - points[v])).length() < 1e-7);
+        }
+    }
+
+    #[test]
+    fn key_bits_cover_twice_the_points_in_whole_bytes() {
+        assert_eq!(key_bits(10), 8);
+        assert_eq!(key_bits(4096), 16);
+        assert_eq!(key_bits(40_000), 24);
+        assert_eq!(key_bits(262_144), 24);
+    }
+}

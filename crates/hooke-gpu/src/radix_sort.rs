@@ -1,0 +1,165 @@
+//! A stable LSD radix sort of `(u32 key, u32 value)` pairs on the GPU (`radix_sort.wgsl`), the
+//! "GPU sorter" of the paper's self-collision binning. Each pass sorts on 4 key bits with
+//! three kernels (count digits per block, scan, scatter); the pairs go back and forth between
+//! two buffer pairs, and an even number of passes leaves the result where the input was.
+
+use crate::GpuError;
+use crate::context::GpuContext;
+use crate::gpu::{
+    WORKGROUP_SIZE, bind_group, compute_pipeline, dispatch_in, read_back, uniform, zeroed,
+};
+use crate::kernels;
+use crate::layout::SortUniforms;
+
+const BITS_PER_PASS: u32 = 4;
+const DIGITS: u64 = 16;
+
+/// Buffers and recorded bind groups to sort `count` pairs on their low `key_bits` bits.
+#[derive(Debug)]
+pub struct RadixSort {
+    count: u32,
+    /// Input and output: `keys[0]`, `values[0]`. `[1]` is scratch.
+    keys: [wgpu::Buffer; 2],
+    values: [wgpu::Buffer; 2],
+    count_digits: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+    /// Per pass: (count-digits group, scan group, scatter group).
+    passes: Vec<[wgpu::BindGroup; 3]>,
+    bytes: u64,
+}
+
+impl RadixSort {
+    /// `key_bits` is rounded up to a multiple of 8 (an even number of passes).
+    pub fn new(context: &GpuContext, count: u32, key_bits: u32) -> Result<Self, GpuError> {
+        let pass_count = key_bits.div_ceil(2 * BITS_PER_PASS) * 2;
+        let block_count = count.div_ceil(WORKGROUP_SIZE).max(1);
+        let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let pair_bytes = 4 * u64::from(count);
+        let keys = [0, 1].map(|k| zeroed(context, &format!("sort keys {k}"), pair_bytes, usage));
+        let values = [0, 1].map(|k| zeroed(context, &format!("sort values {k}"), pair_bytes, usage));
+        let histogram_bytes = 4 * DIGITS * u64::from(block_count);
+        let histogram = zeroed(context, "sort histogram", histogram_bytes, usage);
+        let count_digits =
+            compute_pipeline(context, "radix count", kernels::RADIX_SORT, "count_digits")?;
+        let scan = compute_pipeline(context, "radix scan", kernels::RADIX_SORT, "scan")?;
+        let scatter = compute_pipeline(context, "radix scatter", kernels::RADIX_SORT, "scatter")?;
+        let passes = (0..pass_count)
+            .map(|pass| {
+                let uniforms = SortUniforms {
+                    count,
+                    shift: pass * BITS_PER_PASS,
+                    block_count,
+                    pad: 0,
+                };
+                let uniforms = uniform(context, &uniforms);
+                let (from, to) = ((pass % 2) as usize, 1 - (pass % 2) as usize);
+                [
+                    bind_group(
+                        context,
+                        "radix count",
+                        &count_digits.get_bind_group_layout(0),
+                        &[
+                            (0, uniforms.as_entire_binding()),
+                            (1, keys[from].as_entire_binding()),
+                            (5, histogram.as_entire_binding()),
+                        ],
+                    ),
+                    bind_group(
+                        context,
+                        "radix scan",
+                        &scan.get_bind_group_layout(0),
+                        &[
+                            (0, uniforms.as_entire_binding()),
+                            (5, histogram.as_entire_binding()),
+                        ],
+                    ),
+                    bind_group(
+                        context,
+                        "radix scatter",
+                        &scatter.get_bind_group_layout(0),
+                        &[
+                            (0, uniforms.as_entire_binding()),
+                            (1, keys[from].as_entire_binding()),
+                            (2, values[from].as_entire_binding()),
+                            (3, keys[to].as_entire_binding()),
+                            (4, values[to].as_entire_binding()),
+                            (5, histogram.as_entire_binding()),
+                        ],
+                    ),
+                ]
+            })
+            .collect();
+        Ok(Self {
+            count,
+            keys,
+            values,
+            count_digits,
+            scan,
+            scatter,
+            passes,
+            bytes: 4 * pair_bytes + histogram_bytes,
+        })
+    }
+
+    /// Where the keys to sort go, and where the sorted keys are afterwards.
+    pub fn keys(&self) -> &wgpu::Buffer {
+        &self.keys[0]
+    }
+
+    /// Where the values go, and where they are in key order afterwards.
+    pub fn values(&self) -> &wgpu::Buffer {
+        &self.values[0]
+    }
+
+    /// GPU memory held, bytes.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Records the sort into an open compute pass.
+    pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
+        for [count_group, scan_group, scatter_group] in &self.passes {
+            dispatch_in(pass, &self.count_digits, count_group, self.count);
+            dispatch_in(pass, &self.scan, scan_group, WORKGROUP_SIZE);
+            dispatch_in(pass, &self.scatter, scatter_group, self.count);
+        }
+    }
+
+    /// Sorts `keys` with their indices as values and reads both back: `(sorted keys, order)`.
+    /// For tests and studies; the solver sorts in place without reading back.
+    pub fn sort_indices(
+        context: &GpuContext,
+        keys: &[u32],
+        key_bits: u32,
+    ) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
+        let sorter = Self::new(context, keys.len() as u32, key_bits)?;
+        let indices: Vec<u32> = (0..keys.len() as u32).collect();
+        context
+            .queue
+            .write_buffer(sorter.keys(), 0, bytemuck::cast_slice(keys));
+        context
+            .queue
+            .write_buffer(sorter.values(), 0, bytemuck::cast_slice(&indices));
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("radix sort"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("radix sort"),
+                timestamp_writes: None,
+            });
+            sorter.encode(&mut pass);
+        }
+        context.queue.submit([encoder.finish()]);
+        let bytes = 4 * keys.len() as u64;
+        let out = read_back(context, &[(sorter.keys(), bytes), (sorter.values(), bytes)])?;
+        context.take_error()?;
+        Ok((
+            bytemuck::pod_collect_to_vec(&out[0]),
+            bytemuck::pod_collect_to_vec(&out[1]),
+        ))
+    }
+}
