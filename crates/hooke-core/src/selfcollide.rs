@@ -53,7 +53,11 @@ impl SelfCollision {
             .copied()
             .filter(|l| *l > 0.0)
             .fold(f64::INFINITY, f64::min);
-        let distance = if shortest.is_finite() { 0.5 * shortest } else { 0.01 };
+        let distance = if shortest.is_finite() {
+            0.5 * shortest
+        } else {
+            0.01
+        };
         Self {
             distance,
             cell_size: 2.0 * distance,
@@ -336,7 +340,11 @@ mod tests {
             let ends: Vec<[u32; 2]> = (0..200).map(|i| [2 * i, 2 * i + 1]).collect();
             let adjacency = Adjacency::from_springs(points.len(), &ends);
             let exact = exact_pairs(&points, &adjacency, distance);
-            assert!(exact.len() > 50, "the test needs pairs, found {}", exact.len());
+            assert!(
+                exact.len() > 50,
+                "the test needs pairs, found {}",
+                exact.len()
+            );
             assert_eq!(exact, brute_force_pairs(&points, &adjacency, distance));
         }
     }

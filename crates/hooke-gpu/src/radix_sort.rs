@@ -37,7 +37,8 @@ impl RadixSort {
         let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let pair_bytes = 4 * u64::from(count);
         let keys = [0, 1].map(|k| zeroed(context, &format!("sort keys {k}"), pair_bytes, usage));
-        let values = [0, 1].map(|k| zeroed(context, &format!("sort values {k}"), pair_bytes, usage));
+        let values =
+            [0, 1].map(|k| zeroed(context, &format!("sort values {k}"), pair_bytes, usage));
         let histogram_bytes = 4 * DIGITS * u64::from(block_count);
         let histogram = zeroed(context, "sort histogram", histogram_bytes, usage);
         let count_digits =

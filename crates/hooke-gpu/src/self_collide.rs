@@ -85,7 +85,12 @@ impl SelfCollidePass {
             kernels::SELF_COLLIDE,
             "correct",
         )?;
-        let apply = compute_pipeline(context, "self-collision apply", kernels::SELF_COLLIDE, "apply")?;
+        let apply = compute_pipeline(
+            context,
+            "self-collision apply",
+            kernels::SELF_COLLIDE,
+            "apply",
+        )?;
         // The pass works on the buffer the step writes: positions[1 - current].
         let target = |current: usize| &buffers.positions[1 - current];
         let key_groups = uniforms

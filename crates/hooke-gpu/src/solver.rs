@@ -15,10 +15,10 @@ use hooke_core::collide::Shape;
 use hooke_core::{Model, PhaseTimes, SimError, SimParams, Solver, State};
 
 use crate::context::{GpuContext, GpuError};
-use crate::self_collide::{SelfCollidePass, SolverBuffers};
 use crate::gpu::{self, bind_group, compute_pipeline, dispatch, read_back, storage, zeroed};
 use crate::kernels;
 use crate::layout::{GatherEntry, GpuSpring, GpuStatus, StepUniforms};
+use crate::self_collide::{SelfCollidePass, SolverBuffers};
 
 /// How scatter (ECA) sums the spring forces at the vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -383,3 +383,96 @@ fn a_moving_ball_pushes_through_a_curtain_on_the_gpu() {
     }
     assert!(pushed > 0.1, "the curtain moved only {pushed} m");
 }
+
+#[test]
+fn gpu_radix_sort_equals_a_stable_cpu_sort() {
+    use hooke_core::selfcollide::sort_by_key;
+    use hooke_gpu::radix_sort::RadixSort;
+    use rand::{RngExt, SeedableRng};
+    let Some(context) = context() else { return };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    // Sizes off the 64-pair blocks, key ranges with many and few repeats, 8 to 32 bits.
+    for (count, bits, range) in [
+        (1, 8, 256),
+        (63, 8, 4),
+        (1000, 16, 300),
+        (4097, 16, 65_536),
+        (20_000, 24, 1 << 24),
+        (3000, 32, u32::MAX),
+    ] {
+        let keys: Vec<u32> = (0..count).map(|_| rng.random_range(0..range)).collect();
+        let (gpu_keys, gpu_order) =
+            RadixSort::sort_indices(&context, &keys, bits).expect("gpu sort");
+        let (cpu_keys, cpu_order) = sort_by_key(&keys);
+        assert_eq!(gpu_keys, cpu_keys, "{count} keys of {bits} bits");
+        assert_eq!(
+            gpu_order, cpu_order,
+            "{count} keys of {bits} bits: not stable"
+        );
+    }
+}
+
+#[test]
+fn gpu_self_collision_step_agrees_with_the_reference_from_a_folded_state() {
+    use hooke_core::test_scenes::folding_cloth;
+    let Some(context) = context() else { return };
+    let scene = folding_cloth();
+    let off = SimParams {
+        self_collision: None,
+        ..scene.params.clone()
+    };
+    // A state folded without self-collision: many pairs for one step to push apart.
+    let mut folder = ReferenceSolver::new(&scene.model, &off);
+    folder.step(5000).expect("stable");
+    let folded = folder.read_state();
+    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+    reference.write_state(&folded);
+    reference.step(1).expect("stable");
+    let expected = reference.read_state();
+    folder.step(1).expect("stable");
+    let pushed = folder
+        .read_state()
+        .positions
+        .iter()
+        .zip(&expected.positions)
+        .filter(|(a, b)| a.distance(**b) > 1e-4)
+        .count();
+    assert!(
+        pushed > 100,
+        "only {pushed} vertices pushed by self-collision"
+    );
+    let mut solver =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    solver.write_state(&folded);
+    solver.step(1).expect("stable");
+    let error = relative_l2(&solver.read_state().positions, &expected.positions);
+    assert!(error < 1e-6, "relative L2 {error:.2e}");
+}
+
+#[test]
+fn gpu_self_collision_keeps_folded_layers_apart() {
+    use hooke_core::test_scenes::{folding_cloth, interpenetrating_pairs};
+    let Some(context) = context() else { return };
+    let scene = folding_cloth();
+    let off = SimParams {
+        self_collision: None,
+        ..scene.params.clone()
+    };
+    let count = |params: &SimParams| {
+        let mut solver = GpuSolver::new(
+            Arc::clone(&context),
+            &scene.model,
+            params,
+            GpuMethod::Gather,
+        )
+        .expect("solver");
+        solver.step(5000).expect("stable");
+        interpenetrating_pairs(&scene, &solver.read_state())
+    };
+    let (crossed, kept) = (count(&off), count(&scene.params));
+    assert!(crossed > 100, "only {crossed} pairs without self-collision");
+    assert!(
+        kept * 20 < crossed,
+        "{kept} interpenetrating pairs with self-collision, {crossed} without"
+    );
+}

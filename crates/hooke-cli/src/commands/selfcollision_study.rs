@@ -141,11 +141,8 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
         let missed: f64 = samples
             .iter()
             .map(|s| {
-                let found = selfcollide::approximate_pairs(
-                    &s.positions,
-                    &scene.model.adjacency,
-                    &baseline,
-                );
+                let found =
+                    selfcollide::approximate_pairs(&s.positions, &scene.model.adjacency, &baseline);
                 selfcollide::missed_share(&s.exact, &found) * s.exact.len() as f64
             })
             .sum();

@@ -4,8 +4,8 @@
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
-use hooke_core::selfcollide::SelfCollision;
 use hooke_core::scene::Scene;
+use hooke_core::selfcollide::SelfCollision;
 use hooke_core::stability::stability_limit;
 use hooke_core::{Drag, Model, PhaseTimes, SimParams, Solver, State, Wind};
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
