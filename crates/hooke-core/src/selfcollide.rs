@@ -108,9 +108,9 @@ pub fn inverse_masses(model: &Model) -> Vec<f32> {
 
 /// Stable sort of vertex indices by key: `(sorted keys, vertices in sorted order)`.
 pub fn sort_by_key(keys: &[u32]) -> (Vec<u32>, Vec<u32>) {
-    let mut order: Vec<u32> = (0..keys.len() as u32).collect();
-    order.par_sort_by_key(|&v| keys[v as usize]);
-    (order.iter().map(|&v| keys[v as usize]).collect(), order)
+    let mut pairs: Vec<(u32, u32)> = keys.iter().copied().zip(0..).collect();
+    radsort::sort_by_key(&mut pairs, |&(key, _)| key);
+    pairs.into_iter().unzip()
 }
 
 /// True if a spring joins `a` and `b`.
@@ -149,45 +149,53 @@ pub fn resolve(
     let distance = config.distance as f32;
     for k in 0..config.grids {
         let order = sorted_for_grid(positions, config, k);
-        let current = &*positions;
-        let corrections: Vec<(u32, Vec3)> = order
+        // Window members are read from copies in sorted order: contiguous, not scattered.
+        let sorted: Vec<(Vec3, f32)> = order
             .par_iter()
-            .enumerate()
-            .map(|(j, &p)| {
+            .map(|&v| (positions[v as usize], weights[v as usize]))
+            .collect();
+        let corrections: Vec<Vec3> = (0..order.len())
+            .into_par_iter()
+            .map(|j| {
+                let (xp, wp) = sorted[j];
                 let mut correction = Vec3::ZERO;
-                let wp = weights[p as usize];
                 if wp > 0.0 {
                     for m in window_of(j, config.window, order.len()) {
-                        let q = order[m];
-                        correction += push(current, weights, adjacency, distance, p, q, wp);
+                        let (xq, wq) = sorted[m];
+                        let pair = Pair {
+                            p: order[j],
+                            q: order[m],
+                            d: xp - xq,
+                            share: wp / (wp + wq),
+                        };
+                        correction += push(adjacency, distance, pair);
                     }
                 }
-                (p, correction)
+                correction
             })
             .collect();
-        for (p, c) in corrections {
+        for (&p, c) in order.iter().zip(corrections) {
             positions[p as usize] += c;
             deltas[p as usize] += c;
         }
     }
 }
 
-/// How far `p` moves away from `q` (zero unless they are unjoined and too close).
-fn push(
-    positions: &[Vec3],
-    weights: &[f32],
-    adjacency: &Adjacency,
-    distance: f32,
+/// Two vertices in one window: `d` runs from `q` to `p`; `share` is `p`'s part of the push.
+struct Pair {
     p: u32,
     q: u32,
-    wp: f32,
-) -> Vec3 {
-    let d = positions[p as usize] - positions[q as usize];
+    d: Vec3,
+    share: f32,
+}
+
+/// How far `p` moves away from `q` (zero unless they are unjoined and too close).
+fn push(adjacency: &Adjacency, distance: f32, pair: Pair) -> Vec3 {
+    let Pair { p, q, d, share } = pair;
     let l2 = d.dot(d);
     if l2 >= distance * distance || joined(adjacency, p, q) {
         return Vec3::ZERO;
     }
-    let share = wp / (wp + weights[q as usize]);
     if l2 == 0.0 {
         // Coincident: part them vertically, the lower index going up.
         let sign = if p < q { 1.0 } else { -1.0 };

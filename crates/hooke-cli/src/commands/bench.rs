@@ -19,6 +19,7 @@ use clap::{Args, ValueEnum};
 use comfy_table::Table;
 use hooke_core::Solver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
+use hooke_core::selfcollide::{self, SelfCollision};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, CpuSolver, Method, PhaseTimes};
 use hooke_gpu::{GpuError, GpuMethod, GpuSolver, TimingSource};
@@ -61,6 +62,10 @@ pub struct BenchArgs {
     /// Timed steps per method (fused, then the same number phase-separated).
     #[arg(long, default_value_t = 300)]
     pub steps: u32,
+    /// Add self-collision (Section 5) with this many staggered grids to every workload; its
+    /// cost shows as the collision phase. Distance: half the shortest spring; cells twice that.
+    #[arg(long, value_name = "K")]
+    pub self_collision: Option<u32>,
     /// Untimed steps before timing.
     #[arg(long, default_value_t = 50)]
     pub warmup: u32,
@@ -82,6 +87,8 @@ struct Row {
     force_calculation_ms: f64,
     force_accumulation_ms: Option<f64>,
     integration_ms: f64,
+    /// Collider and self-collision passes, when the workload has them.
+    collision_ms: Option<f64>,
     phased_total_ms: f64,
     total_ms: f64,
     springs_per_second: f64,
@@ -125,8 +132,19 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let run_cpu = args.backend != BenchBackend::Gpu;
     let mut rows = Vec::new();
     for (name, section, vertex_count) in meshes {
-        let scene =
+        let mut scene =
             benchmark_scene(section, vertex_count).with_context(|| format!("building {name}"))?;
+        if let Some(grids) = args.self_collision {
+            anyhow::ensure!(
+                (1..=selfcollide::MAX_GRIDS).contains(&grids),
+                "--self-collision: {grids} grids is outside 1..={}",
+                selfcollide::MAX_GRIDS
+            );
+            scene.params.self_collision = Some(SelfCollision {
+                grids,
+                ..SelfCollision::for_model(&scene.model)
+            });
+        }
         if let Some(context) = &gpu {
             for method in GpuMethod::all() {
                 let mut solver = match GpuSolver::new(
@@ -212,17 +230,19 @@ struct PhaseMedians {
     force_calculation: f64,
     force_accumulation: Option<f64>,
     integration: f64,
+    collision: Option<f64>,
     total: f64,
 }
 
 impl PhaseMedians {
-    fn of(phases: &[PhaseTimes], accumulates: bool) -> Self {
+    fn of(phases: &[PhaseTimes], accumulates: bool, collides: bool) -> Self {
         let of = |phase: fn(&PhaseTimes) -> Duration| median(phases.iter().map(phase).collect());
         Self {
             force_calculation: of(|p| p.force_calculation),
             force_accumulation: accumulates
                 .then(|| of(|p| p.force_accumulation.unwrap_or_default())),
             integration: of(|p| p.integration),
+            collision: collides.then(|| of(|p| p.collision)),
             total: of(PhaseTimes::total),
         }
     }
@@ -257,7 +277,8 @@ fn measure(
     let bytes_per_step = solver.bytes_per_step();
     let bandwidth = copy_bandwidth(bytes_per_step, copy_pool);
     let method = solver.options().method;
-    let medians = PhaseMedians::of(&phases, method == Method::Scatter);
+    let collides = !scene.params.colliders.is_empty() || scene.params.self_collision.is_some();
+    let medians = PhaseMedians::of(&phases, method == Method::Scatter, collides);
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
@@ -269,6 +290,7 @@ fn measure(
         force_calculation_ms: medians.force_calculation,
         force_accumulation_ms: medians.force_accumulation,
         integration_ms: medians.integration,
+        collision_ms: medians.collision,
         phased_total_ms: medians.total,
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
@@ -300,7 +322,8 @@ fn measure_gpu(
         TimingSource::WallClock => "wall clock",
     };
     let method = solver.method();
-    let medians = PhaseMedians::of(&phases, matches!(method, GpuMethod::Scatter(_)));
+    let collides = !scene.params.colliders.is_empty() || scene.params.self_collision.is_some();
+    let medians = PhaseMedians::of(&phases, matches!(method, GpuMethod::Scatter(_)), collides);
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
@@ -312,6 +335,7 @@ fn measure_gpu(
         force_calculation_ms: medians.force_calculation,
         force_accumulation_ms: medians.force_accumulation,
         integration_ms: medians.integration,
+        collision_ms: medians.collision,
         phased_total_ms: medians.total,
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
@@ -377,6 +401,7 @@ fn print_report(report: &Report) {
         "force calc ms",
         "force accum ms",
         "integration ms",
+        "collision ms",
         "sum of phases ms",
         "total ms",
         "Mspring/s",
@@ -397,6 +422,7 @@ fn print_report(report: &Report) {
             r.force_accumulation_ms
                 .map_or("-".to_owned(), |a| format!("{a:.3}")),
             format!("{:.3}", r.integration_ms),
+            r.collision_ms.map_or("-".to_owned(), |c| format!("{c:.3}")),
             format!("{:.3}", r.phased_total_ms),
             format!("{:.3}", r.total_ms),
             format!("{:.0}", r.springs_per_second / 1e6),
