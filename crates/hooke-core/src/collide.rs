@@ -9,6 +9,14 @@
 //! A kinematic collider moves on a scripted straight path: at time `t` it sits at its scene
 //! position plus `velocity * t`. Friction then acts on motion relative to the collider, so a
 //! moving ball drags the cloth it touches along.
+//!
+//! A dynamic ball (a sphere with [`Dynamics`]) is a rigid body: gravity, an applied force and
+//! the cloth's reaction move it. The reaction is the momentum the collision response gave the
+//! cloth, taken back from the ball: a vertex of mass `m` moved by `c` in a step of `dt` gained
+//! momentum `m c / dt`, so the ball feels `-m c / dt^2` ([`advance_balls`]). Balls then meet
+//! planes and other spheres: pushed out, their approach speed reversed times the restitution,
+//! and the collider's friction share removed from their sliding speed. They slide; they do not
+//! spin (no angular state).
 
 use glam::DVec3;
 
@@ -32,8 +40,21 @@ pub struct Collider {
     pub shape: Shape,
     /// Share of tangential motion removed per contact step, 0 (ice) to 1 (glue).
     pub friction: f64,
-    /// Scripted velocity, m/s (zero for a static collider).
+    /// Scripted velocity, m/s (zero for a static collider); a dynamic ball's current velocity.
     pub velocity: DVec3,
+    /// Set for a dynamic ball (a sphere that moves under forces).
+    pub dynamics: Option<Dynamics>,
+}
+
+/// What makes a ball dynamic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Dynamics {
+    /// kg.
+    pub mass: f64,
+    /// A constant applied force, N (the viewer's pushes change it).
+    pub force: DVec3,
+    /// Share of the approach speed a ball keeps, reversed, after meeting a plane or sphere.
+    pub restitution: f64,
 }
 
 impl Shape {
@@ -47,8 +68,12 @@ impl Shape {
 }
 
 impl Collider {
-    /// The collider moved to where its script puts it at time `t`.
+    /// The collider moved to where its script puts it at time `t` (a dynamic ball is where
+    /// its state says, whatever `t`).
     pub fn at(&self, t: f64) -> Self {
+        if self.dynamics.is_some() {
+            return *self;
+        }
         let offset = self.velocity * t;
         let shape = match self.shape {
             Shape::Sphere { center, radius } => Shape::Sphere {
@@ -90,16 +115,160 @@ pub fn resolve(
     current: DVec3,
     next: DVec3,
 ) -> DVec3 {
+    resolve_and_report(colliders, thickness, t, dt, current, next, |_, _| {})
+}
+
+/// [`resolve`], telling `moved(collider, c)` how far each collider moved the vertex.
+pub fn resolve_and_report(
+    colliders: &[Collider],
+    thickness: f64,
+    t: f64,
+    dt: f64,
+    current: DVec3,
+    next: DVec3,
+    mut moved: impl FnMut(usize, DVec3),
+) -> DVec3 {
     let mut p = next;
-    for collider in colliders {
+    for (k, collider) in colliders.iter().enumerate() {
         if let Some((normal, depth)) = collider.at(t).penetration(p, thickness) {
+            let before = p;
             p += normal * depth;
             let step = p - current - collider.velocity * dt;
             let tangential = step - normal * step.dot(normal);
             p -= tangential * collider.friction;
+            moved(k, p - before);
         }
     }
     p
+}
+
+/// New collider settings for a running simulation: dynamic balls keep where they are and how
+/// they move when the list still has the same shapes in the same order; otherwise it restarts.
+pub fn carry_over(running: &[Collider], settings: &[Collider]) -> Vec<Collider> {
+    if !same_kinds(running, settings) {
+        return settings.to_vec();
+    }
+    running
+        .iter()
+        .zip(settings)
+        .map(|(now, new)| match (now.shape, new.shape, new.dynamics) {
+            (Shape::Sphere { center, .. }, Shape::Sphere { radius, .. }, Some(_)) => Collider {
+                shape: Shape::Sphere { center, radius },
+                velocity: now.velocity,
+                ..*new
+            },
+            _ => *new,
+        })
+        .collect()
+}
+
+/// True if both lists hold the same shapes in the same order, dynamic in the same places.
+pub fn same_kinds(a: &[Collider], b: &[Collider]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(a, b)| {
+            std::mem::discriminant(&a.shape) == std::mem::discriminant(&b.shape)
+                && a.dynamics.is_some() == b.dynamics.is_some()
+        })
+}
+
+/// The colliders placed at time `t` (scripted ones moved, dynamic ones where they are).
+pub fn placed(colliders: &[Collider], t: f64) -> Vec<Collider> {
+    colliders.iter().map(|c| c.at(t)).collect()
+}
+
+/// True if any collider is a dynamic ball.
+pub fn any_dynamic(colliders: &[Collider]) -> bool {
+    colliders.iter().any(|c| c.dynamics.is_some())
+}
+
+/// Advances the dynamic balls among `colliders` by one step of `dt`. `pushes[k]` is the sum
+/// over vertices of `m c` (kg m) for the moves `c` collider `k` made this step; the ball takes
+/// the opposite momentum. Then each ball, in order, meets the planes and other spheres.
+/// `t` is the time at the end of the step (where scripted obstacles are met).
+pub fn advance_balls(
+    colliders: &mut [Collider],
+    pushes: &[DVec3],
+    gravity: DVec3,
+    dt: f64,
+    t: f64,
+) {
+    for (collider, push) in colliders.iter_mut().zip(pushes) {
+        let (Some(dynamics), Shape::Sphere { center, .. }) =
+            (collider.dynamics, &mut collider.shape)
+        else {
+            continue;
+        };
+        let force = dynamics.force + gravity * dynamics.mass - *push / (dt * dt);
+        collider.velocity += force / dynamics.mass * dt;
+        *center += collider.velocity * dt;
+    }
+    for k in 0..colliders.len() {
+        let (Some(dynamics), Shape::Sphere { .. }) = (colliders[k].dynamics, colliders[k].shape)
+        else {
+            continue;
+        };
+        for other in 0..colliders.len() {
+            if other != k {
+                let (ball, obstacle) = pair_mut(colliders, k, other);
+                meet(ball, dynamics, obstacle, t);
+            }
+        }
+    }
+}
+
+fn pair_mut<T>(items: &mut [T], a: usize, b: usize) -> (&mut T, &mut T) {
+    if a < b {
+        let (left, right) = items.split_at_mut(b);
+        (&mut left[a], &mut right[0])
+    } else {
+        let (left, right) = items.split_at_mut(a);
+        (&mut right[0], &mut left[b])
+    }
+}
+
+/// A dynamic ball meets a plane or sphere: pushed out (a dynamic sphere shares the push and
+/// the impulse by mass), approach speed reversed times the restitution, friction on sliding.
+fn meet(ball: &mut Collider, dynamics: Dynamics, obstacle: &mut Collider, t: f64) {
+    let Shape::Sphere { center, radius } = ball.shape else {
+        return;
+    };
+    let (normal, depth) = match obstacle.at(t).shape {
+        Shape::Plane { point, normal } => (normal, radius - (center - point).dot(normal)),
+        Shape::Sphere {
+            center: other,
+            radius: other_radius,
+        } => {
+            let offset = center - other;
+            let normal = offset.try_normalize().unwrap_or(DVec3::Y);
+            (normal, radius + other_radius - offset.length())
+        }
+    };
+    if depth <= 0.0 {
+        return;
+    }
+    // Share of the push and impulse the ball takes: all of it against a scripted obstacle.
+    let share = match obstacle.dynamics {
+        Some(other) => other.mass / (dynamics.mass + other.mass),
+        None => 1.0,
+    };
+    let relative = ball.velocity - obstacle.velocity;
+    let approach = relative.dot(normal);
+    let mut change = DVec3::ZERO;
+    if approach < 0.0 {
+        change -= normal * ((1.0 + dynamics.restitution) * approach);
+    }
+    let sliding = relative - normal * approach;
+    change -= sliding * obstacle.friction;
+    ball.velocity += change * share;
+    if let Shape::Sphere { center, .. } = &mut ball.shape {
+        *center += normal * (depth * share);
+    }
+    if obstacle.dynamics.is_some() {
+        obstacle.velocity -= change * (1.0 - share);
+        if let Shape::Sphere { center, .. } = &mut obstacle.shape {
+            *center -= normal * (depth * (1.0 - share));
+        }
+    }
 }
 
 #[cfg(test)]
@@ -115,6 +284,7 @@ mod tests {
             },
             friction: 0.0,
             velocity: DVec3::ZERO,
+            dynamics: None,
         };
         let p = resolve(
             &[sphere],
@@ -136,6 +306,7 @@ mod tests {
             },
             friction: 0.0,
             velocity: DVec3::X,
+            dynamics: None,
         };
         // At t = 2 the ball is centred at x = 2: a point at x = 2.2 is inside and pushed out.
         let p = resolve(
@@ -167,6 +338,7 @@ mod tests {
             },
             friction,
             velocity: DVec3::ZERO,
+            dynamics: None,
         };
         let (from, to) = (DVec3::new(0.0, 0.01, 0.0), DVec3::new(0.5, -0.1, 0.0));
         let slippery = resolve(&[plane(0.0)], 0.0, 1.0, 0.01, from, to);

@@ -6,7 +6,7 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::collide::resolve;
+use crate::collide::{Collider, advance_balls, carry_over, placed, resolve_and_report};
 use crate::diagnostics::spring_force_on_a;
 use crate::forces::add_external_forces;
 use crate::selfcollide::{self, SelfCollision};
@@ -18,6 +18,8 @@ pub struct ReferenceSolver {
     params: SimParams,
     state: State,
     forces: Vec<DVec3>,
+    /// Colliders as they are now (dynamic balls move; scripted ones are placed by time).
+    colliders: Vec<Collider>,
     steps_taken: u64,
 }
 
@@ -27,6 +29,7 @@ impl ReferenceSolver {
             state: State::at_rest(model.initial_positions.clone()),
             forces: vec![DVec3::ZERO; model.vertex_count()],
             model: model.clone(),
+            colliders: params.colliders.clone(),
             params: params.clone(),
             steps_taken: 0,
         }
@@ -51,6 +54,7 @@ impl ReferenceSolver {
         self.steps_taken += 1;
         // Colliders are placed where they are at the end of this step.
         let t = self.steps_taken as f64 * dt;
+        let mut pushes = vec![DVec3::ZERO; self.colliders.len()];
         for i in 0..model.vertex_count() {
             let x = state.positions[i];
             let x_previous = state.previous_positions[i];
@@ -59,13 +63,15 @@ impl ReferenceSolver {
             } else {
                 let total = self.forces[i] - params.damping * (x - x_previous) / dt;
                 let moved = total / model.masses[i] * dt * dt + 2.0 * x - x_previous;
-                resolve(
-                    &params.colliders,
+                let mass = model.masses[i];
+                resolve_and_report(
+                    &self.colliders,
                     params.collision_thickness,
                     t,
                     dt,
                     x,
                     moved,
+                    |k, c| pushes[k] += c * mass,
                 )
             };
             if !next.is_finite() {
@@ -77,6 +83,7 @@ impl ReferenceSolver {
             state.previous_positions[i] = x;
             state.positions[i] = next;
         }
+        advance_balls(&mut self.colliders, &pushes, params.gravity, dt, t);
         if let Some(config) = &params.self_collision {
             resolve_self_collisions(model, state, config);
         }
@@ -103,6 +110,7 @@ impl Solver for ReferenceSolver {
     }
 
     fn set_params(&mut self, params: &SimParams) {
+        self.colliders = carry_over(&self.colliders, &params.colliders);
         self.params = params.clone();
     }
 
@@ -123,5 +131,9 @@ impl Solver for ReferenceSolver {
 
     fn steps_taken(&self) -> u64 {
         self.steps_taken
+    }
+
+    fn colliders(&self) -> Vec<Collider> {
+        placed(&self.colliders, self.steps_taken as f64 * self.params.dt)
     }
 }

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::collide::{Collider, Shape};
+use crate::collide::{Collider, Dynamics, Shape};
 use crate::mesh::{self, GridPlane, Mesh, MeshWarning};
 use crate::selfcollide::{self, SelfCollision};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
@@ -96,9 +96,19 @@ pub struct ColliderSection {
     /// Share of tangential motion removed per contact step, 0..1.
     #[serde(default)]
     pub friction: f64,
-    /// Scripted velocity (m/s): a kinematic collider moves on this straight path.
+    /// Scripted velocity (m/s): a kinematic collider moves on this straight path. A dynamic
+    /// ball starts with it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity: Option<[f64; 3]>,
+    /// kg: makes a sphere a dynamic ball, moved by gravity, `force` and the cloth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    /// A constant force on a dynamic ball, N.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force: Option<[f64; 3]>,
+    /// A dynamic ball's bounce off planes and spheres, 0..=1 (default 0.3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -792,10 +802,52 @@ impl SceneFile {
                 }
                 None => DVec3::ZERO,
             };
+            let dynamics = match (c.mass, c.kind) {
+                (None, _) => {
+                    for (name, set) in [
+                        ("force", c.force.is_some()),
+                        ("restitution", c.restitution.is_some()),
+                    ] {
+                        require(!set, || {
+                            invalid(&field(name), "applies only to a ball with a mass".into())
+                        })?;
+                    }
+                    None
+                }
+                (Some(_), ColliderKind::Plane) => {
+                    return Err(invalid(
+                        &field("mass"),
+                        "only spheres can be dynamic".into(),
+                    ));
+                }
+                (Some(mass), ColliderKind::Sphere) => {
+                    require(mass > 0.0 && mass.is_finite(), || {
+                        invalid(
+                            &field("mass"),
+                            format!("must be a positive number, found {mass}"),
+                        )
+                    })?;
+                    let restitution = c.restitution.unwrap_or(0.3);
+                    require((0.0..=1.0).contains(&restitution), || {
+                        invalid(
+                            &field("restitution"),
+                            format!("must be 0..=1, found {restitution}"),
+                        )
+                    })?;
+                    let force = c.force.unwrap_or([0.0; 3]);
+                    finite(&field("force"), force)?;
+                    Some(Dynamics {
+                        mass,
+                        force: DVec3::from_array(force),
+                        restitution,
+                    })
+                }
+            };
             colliders.push(Collider {
                 shape,
                 friction: c.friction,
                 velocity,
+                dynamics,
             });
         }
         let collision_thickness = self.collision.as_ref().map_or(0.0, |c| c.thickness);

@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use crate::collide::Collider;
 use crate::{SimParams, State};
 
 /// Time of each phase of one step, as the paper's Table 2 splits it.
@@ -70,4 +71,8 @@ pub trait Solver: Send {
 
     /// Steps taken since the solver was built.
     fn steps_taken(&self) -> u64;
+
+    /// The colliders where they are now: scripted ones moved along their paths, dynamic balls
+    /// where the simulation put them (a read-back for solvers whose state is remote).
+    fn colliders(&self) -> Vec<Collider>;
 }

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use crate::Solver;
 use crate::scene::{Scene, SceneFile};
 
 /// Builds a scene from TOML text and runs it at half the stable time step (test scenes compare
@@ -134,4 +135,124 @@ pub fn interpenetrating_pairs(scene: &Scene, state: &crate::State) -> usize {
         .expect("a scene with self-collision");
     let positions: Vec<glam::Vec3> = state.positions.iter().map(|p| p.as_vec3()).collect();
     crate::selfcollide::exact_pairs(&positions, &scene.model.adjacency, 0.5 * config.distance).len()
+}
+
+/// A 16 x 16 sheet, 1 m wide, pinned at its corners, and a dynamic ball (0.2 kg, radius
+/// 0.15 m) dropped onto its middle from 0.3 m above; thickness 5 mm. Built at 0.5 of the
+/// stable dt.
+pub fn ball_onto_sheet() -> Scene {
+    let text = r#"
+[mesh]
+generator = "grid"
+resolution = [16, 16]
+center = [0.0, 1.0, 0.0]
+
+[material]
+mass = { total = 0.1 }
+stiffness = 200.0
+damping = 0.03
+
+[pins]
+select = ["corners"]
+
+[simulation]
+dt = "auto"
+
+[collision]
+thickness = 0.005
+
+[[collider]]
+kind = "sphere"
+center = [0.0, 1.45, 0.0]
+radius = 0.15
+mass = 0.2
+friction = 0.3
+"#;
+    build(text, "ball-onto-sheet")
+}
+
+/// Drops the ball of `ball_onto_sheet` and checks the exchange of momentum: it falls freely
+/// until it meets the sheet, is then slowed by it (the sheet takes its momentum), comes to
+/// rest on it, and its weight ends up on the pins.
+pub fn check_ball_dropped_on_sheet(solver: &mut dyn Solver, scene: &Scene) {
+    use crate::collide::Shape;
+    use crate::diagnostics::pin_reactions;
+    use glam::DVec3;
+    let dt = scene.params.dt;
+    let g = scene.params.gravity.y;
+    let ball = |solver: &dyn Solver| {
+        let collider = solver.colliders()[0];
+        let Shape::Sphere { center, .. } = collider.shape else {
+            panic!("a sphere")
+        };
+        (center, collider.velocity)
+    };
+    let (start, _) = ball(solver);
+    let mut slowed = false;
+    let mut lowest = f64::INFINITY;
+    for _ in 0..120 {
+        solver.step(50).expect("stable");
+        let t = solver.steps_taken() as f64 * dt;
+        let (center, velocity) = ball(solver);
+        let free_fall = g * t;
+        if center.y > start.y + 0.5 * g * t * t - 0.2 - 1e-9 && t < 0.2 {
+            // Before contact (the sheet is 0.3 m below the ball's bottom): free fall.
+            assert!(
+                (velocity.y - free_fall).abs() < 1e-3 * free_fall.abs() + 1e-6,
+                "{} t = {t}: {} vs {free_fall}",
+                solver.describe(),
+                velocity.y
+            );
+        }
+        slowed |= velocity.y > 0.5 * free_fall && t > 0.3;
+        let cloth_low = solver
+            .read_state()
+            .positions
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min);
+        // The ball never falls through: its bottom stays above the sheet's lowest point.
+        assert!(
+            center.y - 0.15 > cloth_low - 0.02,
+            "{}: ball bottom {} below the sheet {cloth_low}",
+            solver.describe(),
+            center.y - 0.15
+        );
+        lowest = lowest.min(center.y);
+    }
+    assert!(
+        slowed,
+        "{}: the sheet did not slow the ball",
+        solver.describe()
+    );
+    let (center, velocity) = ball(solver);
+    assert!(
+        velocity.length() < 0.05,
+        "{}: the ball is still moving at {velocity}",
+        solver.describe()
+    );
+    // It rests in the sheet's sag, below where it met the sheet, above its lowest bounce.
+    assert!(
+        center.y < 1.15 && center.y >= lowest,
+        "{}: {center}",
+        solver.describe()
+    );
+    // At rest the ball's weight has gone through the sheet to the pins (time-averaged).
+    let window = 500;
+    let mut total = DVec3::ZERO;
+    for _ in 0..window {
+        solver.step(1).expect("stable");
+        let positions = solver.read_state().positions;
+        total += pin_reactions(&scene.model, &positions, &scene.params)
+            .iter()
+            .map(|(_, r)| *r)
+            .sum::<DVec3>();
+    }
+    total /= f64::from(window);
+    let weight = (scene.model.total_mass() + 0.2) * scene.params.gravity;
+    assert!(
+        (total + weight).length() < 0.02 * weight.length(),
+        "{}: pins hold {total}, cloth and ball weigh {weight}",
+        solver.describe()
+    );
 }

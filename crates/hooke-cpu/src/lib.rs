@@ -22,6 +22,7 @@ use std::time::Instant;
 
 use glam::{DVec3, Vec3};
 pub use hooke_core::PhaseTimes;
+use hooke_core::collide::{self, Collider};
 use hooke_core::{Model, SimError, SimParams, Solver, State, selfcollide};
 use rayon::prelude::*;
 
@@ -136,6 +137,10 @@ pub struct CpuSolver {
     delta: Soa,
     /// Self-collision weights by mesh vertex.
     inverse_masses: Vec<f32>,
+    /// Colliders as they are now (dynamic balls move; scripted ones are placed by time).
+    colliders: Vec<Collider>,
+    /// Scratch of `collide`: per slice and collider, the momentum the cloth took.
+    slice_pushes: Vec<DVec3>,
     steps_taken: u64,
 }
 
@@ -193,6 +198,8 @@ impl CpuSolver {
             next: Soa::zeros(slices),
             delta: Soa::zeros(slices),
             inverse_masses: selfcollide::inverse_masses(model),
+            colliders: params.colliders.clone(),
+            slice_pushes: Vec::new(),
             model: model.clone(),
             steps_taken: 0,
         };
@@ -349,23 +356,28 @@ impl CpuSolver {
     }
 
     /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in
-    /// parallel over vertex chunks, before the new positions become current.
+    /// parallel over vertex chunks, before the new positions become current; then advances
+    /// dynamic balls by the momentum the cloth took from them.
     fn collide(&mut self) {
-        if self.params.colliders.is_empty() {
+        if self.colliders.is_empty() {
             return;
         }
-        let (colliders, thickness) = (&self.params.colliders, self.params.collision_thickness);
+        let (colliders, thickness) = (&self.colliders, self.params.collision_thickness);
         // Colliders are placed where they are at the end of the step being finished.
         let (dt, t) = (
             self.params.dt,
             (self.steps_taken + 1) as f64 * self.params.dt,
         );
         let (current, scales) = (&self.current, &self.integrator.scales);
-        let real = self.model.vertex_count();
+        let (real, count) = (self.model.vertex_count(), colliders.len());
+        let (masses, original) = (&self.model.masses, &self.numbering.original);
         let [nx, ny, nz] = self.next.axes_mut();
         let [dx, dy, dz] = self.delta.axes_mut();
         let free = scales.axis(0);
         let [cx, cy, cz] = current.axes();
+        // Per slice and collider: sum of m c over the slice's vertices (kg m).
+        self.slice_pushes.clear();
+        self.slice_pushes.resize(free.len() * count, DVec3::ZERO);
         nx.par_iter_mut()
             .zip(ny.par_iter_mut())
             .zip(nz.par_iter_mut())
@@ -374,10 +386,12 @@ impl CpuSolver {
                     .zip(dy.par_iter_mut())
                     .zip(dz.par_iter_mut()),
             )
+            .zip(self.slice_pushes.par_chunks_mut(count))
             .enumerate()
-            .for_each(|(slice, (((nx, ny), nz), ((dx, dy), dz)))| {
+            .for_each(|(slice, ((((nx, ny), nz), ((dx, dy), dz)), pushes))| {
                 for lane in 0..LANES {
-                    if slice * LANES + lane >= real || free[slice][lane] <= 0.0 {
+                    let k = slice * LANES + lane;
+                    if k >= real || free[slice][lane] <= 0.0 {
                         continue;
                     }
                     let x = DVec3::new(
@@ -386,13 +400,32 @@ impl CpuSolver {
                         cz[slice][lane].into(),
                     );
                     let next = DVec3::new(nx[lane].into(), ny[lane].into(), nz[lane].into());
-                    let p = hooke_core::collide::resolve(colliders, thickness, t, dt, x, next)
-                        .as_vec3();
+                    let mass = masses[original[k] as usize];
+                    let p = collide::resolve_and_report(
+                        colliders,
+                        thickness,
+                        t,
+                        dt,
+                        x,
+                        next,
+                        |c, moved| pushes[c] += moved * mass,
+                    )
+                    .as_vec3();
                     (nx[lane], ny[lane], nz[lane]) = (p.x, p.y, p.z);
                     let d = p - x.as_vec3();
                     (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);
                 }
             });
+        if collide::any_dynamic(&self.colliders) {
+            // Summed in slice order: the same result for any thread count.
+            let mut pushes = vec![DVec3::ZERO; count];
+            for chunk in self.slice_pushes.chunks(count) {
+                for (total, push) in pushes.iter_mut().zip(chunk) {
+                    *total += *push;
+                }
+            }
+            collide::advance_balls(&mut self.colliders, &pushes, self.params.gravity, dt, t);
+        }
     }
 
     /// One step with every phase as its own pass, timed. Results equal [`Solver::step`]'s.
@@ -719,6 +752,7 @@ impl Solver for CpuSolver {
         if self.external.is_some() && self.extra_forces.blocks() != self.numbering.slice_count() {
             self.extra_forces = Soa::zeros(self.numbering.slice_count());
         }
+        self.colliders = collide::carry_over(&self.colliders, &params.colliders);
         self.params = params.clone();
     }
 
@@ -765,5 +799,9 @@ impl Solver for CpuSolver {
 
     fn steps_taken(&self) -> u64 {
         self.steps_taken
+    }
+
+    fn colliders(&self) -> Vec<Collider> {
+        collide::placed(&self.colliders, self.steps_taken as f64 * self.params.dt)
     }
 }

@@ -569,3 +569,11 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
         );
     }
 }
+
+#[test]
+fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_every_solver() {
+    let scene = hooke_core::test_scenes::ball_onto_sheet();
+    for mut solver in all_solvers(&scene.model, &scene.params) {
+        hooke_core::test_scenes::check_ball_dropped_on_sheet(solver.as_mut(), &scene);
+    }
+}

@@ -28,6 +28,9 @@ pub struct StepUniforms {
     pub collider_count: u32,
     /// Distance the cloth keeps from collider surfaces, m.
     pub collision_thickness: f32,
+    /// Dynamic balls among the colliders (0: no reactions are recorded).
+    pub dynamic_count: u32,
+    pub pad: [u32; 3],
 }
 
 /// A spring (`Spring` in WGSL).
@@ -145,6 +148,7 @@ mod tests {
             offset_of!(StepUniforms, fixed_limit),
             offset_of!(StepUniforms, collider_count),
             offset_of!(StepUniforms, collision_thickness),
+            offset_of!(StepUniforms, dynamic_count),
         ];
         assert_eq!(&offsets[..host.len()], host.map(|o| o as u32).as_slice());
 

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use hooke_core::collide::Shape;
+use hooke_core::collide::{Collider, Shape};
 use hooke_core::{Model, PhaseTimes, SimError, SimParams, Solver, State};
 
 use crate::context::{GpuContext, GpuError};
@@ -208,6 +208,52 @@ enum AccumulationPass {
     },
 }
 
+/// Colliders on the GPU: four `vec4` per collider (see collide.wgsl), the collide kernel, and
+/// for dynamic balls the kernels that move them.
+struct CollidePass {
+    pipeline: wgpu::ComputePipeline,
+    /// By current position buffer.
+    groups: [wgpu::BindGroup; 2],
+    colliders: wgpu::Buffer,
+    balls: Option<BallsPass>,
+}
+
+struct BallsPass {
+    advance: wgpu::ComputePipeline,
+    advance_group: wgpu::BindGroup,
+    contacts: wgpu::ComputePipeline,
+    contacts_group: wgpu::BindGroup,
+}
+
+impl CollidePass {
+    fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        current: usize,
+        vertices: u32,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("collide"),
+            timestamp_writes,
+        });
+        gpu::dispatch_in(&mut pass, &self.pipeline, &self.groups[current], vertices);
+        if let Some(balls) = &self.balls {
+            // One workgroup per collider.
+            let colliders = (self.colliders.size() / 64) as u32;
+            gpu::dispatch_in(
+                &mut pass,
+                &balls.advance,
+                &balls.advance_group,
+                colliders * gpu::WORKGROUP_SIZE,
+            );
+            pass.set_pipeline(&balls.contacts);
+            pass.set_bind_group(0, &balls.contacts_group, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+    }
+}
+
 struct ExternalPass {
     wind: Option<(wgpu::ComputePipeline, [wgpu::BindGroup; 2])>,
     vertices: wgpu::ComputePipeline,
@@ -237,8 +283,10 @@ pub struct GpuSolver {
     tick: wgpu::ComputePipeline,
     tick_group: wgpu::BindGroup,
     external: Option<ExternalPass>,
-    /// The collision pass and its bind groups (by current buffer), when the scene has colliders.
-    collide: Option<(wgpu::ComputePipeline, [wgpu::BindGroup; 2])>,
+    /// The collision pass, when the scene has colliders.
+    collide: Option<CollidePass>,
+    /// The colliders' settings as last given (dynamic balls' places live on the GPU).
+    collider_settings: Vec<Collider>,
     self_collide: Option<SelfCollidePass>,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     steps_taken: u64,
@@ -376,6 +424,7 @@ impl GpuSolver {
             tick_group,
             external: None,
             collide: None,
+            collider_settings: Vec::new(),
             self_collide: None,
             timestamps,
             steps_taken: 0,
@@ -516,9 +565,13 @@ impl GpuSolver {
             n,
             writes,
         );
-        if let Some((pipeline, groups)) = &self.collide {
-            let writes = PassTimer::next(timer, Phase::Collision);
-            dispatch(encoder, "collide", pipeline, &groups[current], n, writes);
+        if let Some(pass) = &self.collide {
+            pass.encode(
+                encoder,
+                current,
+                n,
+                PassTimer::next(timer, Phase::Collision),
+            );
         }
         if let Some(pass) = &self.self_collide {
             pass.encode(encoder, current, PassTimer::next(timer, Phase::Collision));
@@ -852,8 +905,8 @@ impl GpuSolver {
             );
         })?;
         times.collision = submit("collision", &|e| {
-            if let Some((pipeline, groups)) = &self.collide {
-                dispatch(e, "collide", pipeline, &groups[current], n, None);
+            if let Some(pass) = &self.collide {
+                pass.encode(e, current, n, None);
             }
             if let Some(pass) = &self.self_collide {
                 pass.encode(e, current, None);
@@ -918,6 +971,38 @@ impl RunError {
             Self::Gpu(e) => e,
         }
     }
+}
+
+/// The four `vec4` per collider that collide.wgsl reads.
+fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
+    colliders
+        .iter()
+        .flat_map(|c| {
+            let v = c.velocity.as_vec3();
+            let (inverse_mass, force, restitution) = match c.dynamics {
+                Some(d) => (
+                    (1.0 / d.mass) as f32,
+                    d.force.as_vec3(),
+                    d.restitution as f32,
+                ),
+                None => (0.0, glam::Vec3::ZERO, 0.0),
+            };
+            let motion = [v.x, v.y, v.z, inverse_mass];
+            let applied = [force.x, force.y, force.z, restitution];
+            let friction = c.friction as f32;
+            let (place, surface) = match c.shape {
+                Shape::Sphere { center, radius } => {
+                    let p = center.as_vec3();
+                    ([p.x, p.y, p.z, radius as f32], [0.0, 1.0, 0.0, friction])
+                }
+                Shape::Plane { point, normal } => {
+                    let (p, n) = (point.as_vec3(), normal.as_vec3());
+                    ([p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction])
+                }
+            };
+            [place, surface, motion, applied]
+        })
+        .collect()
 }
 
 /// Positions as the `vec4` per vertex (w = 1) that GPU position buffers hold.
@@ -1488,38 +1573,66 @@ impl GpuSolver {
         }))
     }
 
-    fn build_collide(
-        &self,
-        params: &SimParams,
-    ) -> Result<Option<(wgpu::ComputePipeline, [wgpu::BindGroup; 2])>, GpuError> {
-        if params.colliders.is_empty() {
-            return Ok(None);
-        }
+    /// The collider pass: (re)built when the colliders change kind or number; otherwise the
+    /// new settings are written in place so dynamic balls keep where they are and how they move.
+    fn build_collide(&mut self, params: &SimParams) -> Result<(), GpuError> {
         let ctx = &*self.context;
-        let entries: Vec<[f32; 4]> = params
-            .colliders
-            .iter()
-            .flat_map(|c| {
-                let friction = c.friction as f32;
-                let v = c.velocity.as_vec3();
-                let velocity = [v.x, v.y, v.z, 0.0];
-                match c.shape {
-                    Shape::Sphere { center, radius } => {
-                        let p = center.as_vec3();
-                        [
-                            [p.x, p.y, p.z, radius as f32],
-                            [0.0, 1.0, 0.0, friction],
-                            velocity,
-                        ]
-                    }
-                    Shape::Plane { point, normal } => {
-                        let (p, n) = (point.as_vec3(), normal.as_vec3());
-                        [[p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction], velocity]
-                    }
+        let entries = collider_entries(&params.colliders);
+        if let Some(pass) = &self.collide
+            && hooke_core::collide::same_kinds(&self.collider_settings, &params.colliders)
+        {
+            // Same kinds: rewrite settings, but not the place and motion of dynamic balls.
+            for (k, (collider, entry)) in params.colliders.iter().zip(entries.chunks(4)).enumerate()
+            {
+                let base = (k * 4 * 16) as u64;
+                if collider.dynamics.is_some() {
+                    ctx.queue.write_buffer(
+                        &pass.colliders,
+                        base + 16,
+                        bytemuck::cast_slice(&entry[1..2]),
+                    );
+                    ctx.queue.write_buffer(
+                        &pass.colliders,
+                        base + 48,
+                        bytemuck::cast_slice(&entry[3..4]),
+                    );
+                } else {
+                    ctx.queue
+                        .write_buffer(&pass.colliders, base, bytemuck::cast_slice(entry));
                 }
-            })
-            .collect();
-        let buffer = storage(ctx, "colliders", &entries, wgpu::BufferUsages::empty());
+            }
+            self.collider_settings = params.colliders.clone();
+            return Ok(());
+        }
+        self.collider_settings = params.colliders.clone();
+        if params.colliders.is_empty() {
+            self.collide = None;
+            return Ok(());
+        }
+        let colliders = storage(
+            ctx,
+            "colliders",
+            &entries,
+            wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        );
+        let dynamic = hooke_core::collide::any_dynamic(&params.colliders);
+        let reactions = if dynamic {
+            let bytes = vec4s(self.model.vertex_count() * params.colliders.len());
+            gpu::check_binding_size(&self.context, "collider reactions", bytes)?;
+            zeroed(
+                ctx,
+                "collider reactions",
+                bytes,
+                wgpu::BufferUsages::empty(),
+            )
+        } else {
+            zeroed(
+                ctx,
+                "collider reactions (none)",
+                16,
+                wgpu::BufferUsages::empty(),
+            )
+        };
         let pipeline = compute_pipeline(ctx, "collide", kernels::COLLIDE, "main")?;
         let layout = pipeline.get_bind_group_layout(0);
         let groups = [0, 1].map(|current| {
@@ -1533,12 +1646,74 @@ impl GpuSolver {
                     (2, self.positions[1 - current].as_entire_binding()),
                     (3, self.deltas.as_entire_binding()),
                     (4, self.scales.as_entire_binding()),
-                    (5, buffer.as_entire_binding()),
+                    (5, colliders.as_entire_binding()),
                     (6, self.status.as_entire_binding()),
+                    (7, reactions.as_entire_binding()),
                 ],
             )
         });
-        Ok(Some((pipeline, groups)))
+        let balls = if dynamic {
+            let advance = compute_pipeline(ctx, "balls advance", kernels::BALLS, "advance")?;
+            let contacts = compute_pipeline(ctx, "balls contacts", kernels::BALLS, "contacts")?;
+            let advance_group = bind_group(
+                ctx,
+                "balls advance",
+                &advance.get_bind_group_layout(0),
+                &[
+                    (0, self.uniform_buffer.as_entire_binding()),
+                    (1, colliders.as_entire_binding()),
+                    (2, reactions.as_entire_binding()),
+                ],
+            );
+            let contacts_group = bind_group(
+                ctx,
+                "balls contacts",
+                &contacts.get_bind_group_layout(0),
+                &[
+                    (0, self.uniform_buffer.as_entire_binding()),
+                    (1, colliders.as_entire_binding()),
+                    (3, self.status.as_entire_binding()),
+                ],
+            );
+            Some(BallsPass {
+                advance,
+                advance_group,
+                contacts,
+                contacts_group,
+            })
+        } else {
+            None
+        };
+        self.collide = Some(CollidePass {
+            pipeline,
+            groups,
+            colliders,
+            balls,
+        });
+        Ok(())
+    }
+
+    /// Records, into `encoder`, copies of the sphere colliders' current places (centre, radius)
+    /// into `target`, one `vec4` per sphere in collider order: how a renderer draws dynamic
+    /// balls without reading them back.
+    pub fn copy_spheres(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::Buffer) {
+        let Some(pass) = &self.collide else { return };
+        let spheres = self
+            .collider_settings
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| matches!(c.shape, Shape::Sphere { .. }));
+        for (slot, (k, collider)) in spheres.enumerate() {
+            if collider.dynamics.is_some() {
+                encoder.copy_buffer_to_buffer(
+                    &pass.colliders,
+                    (k * 64) as u64,
+                    target,
+                    (slot * 16) as u64,
+                    16,
+                );
+            }
+        }
     }
 
     fn apply_params(&mut self, params: &SimParams) -> Result<(), GpuError> {
@@ -1570,8 +1745,13 @@ impl GpuSolver {
         self.uniforms.triangle_count = 0;
         self.external = self.build_external(params)?;
         self.uniforms.has_extra = u32::from(self.external.is_some());
-        self.collide = self.build_collide(params)?;
+        self.build_collide(params)?;
         self.uniforms.collider_count = params.colliders.len() as u32;
+        self.uniforms.dynamic_count = params
+            .colliders
+            .iter()
+            .filter(|c| c.dynamics.is_some())
+            .count() as u32;
         self.uniforms.collision_thickness = params.collision_thickness as f32;
         self.self_collide = match &params.self_collision {
             Some(config) => Some(SelfCollidePass::new(
@@ -1677,5 +1857,35 @@ impl Solver for GpuSolver {
 
     fn steps_taken(&self) -> u64 {
         self.steps_taken
+    }
+
+    fn colliders(&self) -> Vec<Collider> {
+        let t = self.steps_taken as f64 * f64::from(1.0 / self.uniforms.inverse_dt);
+        let mut placed = hooke_core::collide::placed(&self.collider_settings, t);
+        let Some(pass) = &self.collide else {
+            return placed;
+        };
+        if !hooke_core::collide::any_dynamic(&placed) {
+            return placed;
+        }
+        // Dynamic balls live on the GPU: read their place and motion back.
+        let entries: Vec<[f32; 4]> =
+            match read_back(&self.context, &[(&pass.colliders, pass.colliders.size())]) {
+                Ok(bytes) => bytemuck::pod_collect_to_vec(&bytes[0]),
+                Err(error) => {
+                    eprintln!("colliders: {error}; showing the balls where they started");
+                    return placed;
+                }
+            };
+        for (collider, entry) in placed.iter_mut().zip(entries.chunks(4)) {
+            if collider.dynamics.is_none() {
+                continue;
+            }
+            if let Shape::Sphere { center, .. } = &mut collider.shape {
+                *center = glam::Vec3::from_slice(&entry[0][..3]).as_dvec3();
+            }
+            collider.velocity = glam::Vec3::from_slice(&entry[2][..3]).as_dvec3();
+        }
+        placed
     }
 }

@@ -476,3 +476,12 @@ fn gpu_self_collision_keeps_folded_layers_apart() {
         "{kept} interpenetrating pairs with self-collision, {crossed} without"
     );
 }
+
+#[test]
+fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_the_gpu() {
+    let Some(context) = context() else { return };
+    let scene = hooke_core::test_scenes::ball_onto_sheet();
+    let mut solver =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    hooke_core::test_scenes::check_ball_dropped_on_sheet(&mut solver, &scene);
+}

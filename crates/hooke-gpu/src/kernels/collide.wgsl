@@ -7,11 +7,16 @@
 @group(0) @binding(2) var<storage, read_write> next_positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> deltas: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
-// Three entries per collider: (centre or point xyz at time 0, radius; < 0 for a plane),
-// (normal xyz, friction), (scripted velocity xyz, 0).
+// Four entries per collider: (centre or point xyz, radius; < 0 for a plane), (normal xyz,
+// friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
+// restitution). A scripted collider's first entry is its place at time 0; a dynamic ball's is
+// where it is now (balls.wgsl moves it).
 @group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;
 // The status buffer, read only here for its step counter (the fourth word).
 @group(0) @binding(6) var<storage, read> status_words: array<u32, 4>;
+// With dynamic balls: per vertex and collider, m c / dt^2 for the move c the collider made
+// (N), which balls.wgsl sums into the ball's reaction.
+@group(0) @binding(7) var<storage, read_write> reactions: array<vec4<f32>>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -25,9 +30,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     // Colliders are placed where their script puts them at the end of this step.
     let t = f32(status_words[3] + 1u) * dt;
     for (var c = 0u; c < u.collider_count; c++) {
-        let velocity = colliders[3u * c + 2u].xyz;
-        let shape = vec4<f32>(colliders[3u * c].xyz + velocity * t, colliders[3u * c].w);
-        let surface = colliders[3u * c + 1u];
+        let motion = colliders[4u * c + 2u];
+        let velocity = motion.xyz;
+        let scripted = select(t, 0.0, motion.w > 0.0);
+        let shape = vec4<f32>(colliders[4u * c].xyz + velocity * scripted, colliders[4u * c].w);
+        let surface = colliders[4u * c + 1u];
         var normal = surface.xyz;
         var depth: f32;
         if shape.w >= 0.0 {
@@ -38,10 +45,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         } else {
             depth = u.collision_thickness - dot(p - shape.xyz, normal);
         }
+        let before = p;
         if depth > 0.0 {
             p += normal * depth;
             let step = p - x - velocity * dt;
             p -= (step - normal * dot(step, normal)) * surface.w;
+        }
+        if u.dynamic_count > 0u {
+            // scales.x is dt^2 / m.
+            reactions[v * u.collider_count + c] = vec4<f32>((p - before) / scales[v].x, 0.0);
         }
     }
     next_positions[v] = vec4<f32>(p, 1.0);

@@ -22,6 +22,11 @@ struct StepUniforms {
     // Colliders in the collider buffer, and the distance the cloth keeps from them (m).
     collider_count: u32,
     collision_thickness: f32,
+    // Dynamic balls among the colliders (0: no reactions are recorded).
+    dynamic_count: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // Mirrors `GpuStatus` in layout.rs: written by the kernels, read back by the solver.

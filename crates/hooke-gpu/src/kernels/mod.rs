@@ -19,6 +19,7 @@ pub const INTEGRATE: &str = kernel_source!("integrate.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
 pub const COLLIDE: &str = kernel_source!("collide.wgsl");
+pub const BALLS: &str = kernel_source!("balls.wgsl");
 pub const RADIX_SORT: &str = kernel_source!("radix_sort.wgsl");
 pub const SELF_COLLIDE: &str = kernel_source!("self_collide.wgsl");
 
@@ -37,6 +38,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("external", EXTERNAL),
     ("tick", TICK),
     ("collide", COLLIDE),
+    ("balls", BALLS),
     ("radix_sort", RADIX_SORT),
     ("self_collide", SELF_COLLIDE),
 ];

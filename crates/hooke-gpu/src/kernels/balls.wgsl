@@ -1,0 +1,110 @@
+// Dynamic balls (hooke_core::collide::advance_balls, the same rule): `advance` runs one
+// workgroup per collider, sums the cloth's reaction on it in a fixed order (deterministic),
+// and moves a dynamic ball by gravity, its applied force and that reaction; `contacts`, one
+// invocation, then lets each ball in turn meet the planes and other spheres. Runs after
+// `collide`. Collider entries as in collide.wgsl.
+
+@group(0) @binding(0) var<uniform> u: StepUniforms;
+@group(0) @binding(1) var<storage, read_write> colliders: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> reactions: array<vec4<f32>>;
+
+var<workgroup> partial: array<vec3<f32>, 64>;
+
+@compute @workgroup_size(64)
+fn advance(
+    @builtin(local_invocation_index) lane: u32,
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let c = group.x + group.y * groups.x;
+    var sum = vec3<f32>(0.0);
+    if c < u.collider_count {
+        for (var v = lane; v < u.vertex_count; v += WORKGROUP_SIZE) {
+            sum += reactions[v * u.collider_count + c].xyz;
+        }
+    }
+    partial[lane] = sum;
+    workgroupBarrier();
+    for (var half = WORKGROUP_SIZE / 2u; half > 0u; half >>= 1u) {
+        if lane < half {
+            partial[lane] += partial[lane + half];
+        }
+        workgroupBarrier();
+    }
+    if lane != 0u || c >= u.collider_count {
+        return;
+    }
+    let inverse_mass = colliders[4u * c + 2u].w;
+    if inverse_mass <= 0.0 {
+        return;
+    }
+    let dt = 1.0 / u.inverse_dt;
+    let gravity = u.gravity_step.xyz * u.inverse_dt * u.inverse_dt;
+    let force = colliders[4u * c + 3u].xyz - partial[0];
+    let velocity = colliders[4u * c + 2u].xyz + (force * inverse_mass + gravity) * dt;
+    colliders[4u * c + 2u] = vec4<f32>(velocity, inverse_mass);
+    colliders[4u * c] = vec4<f32>(colliders[4u * c].xyz + velocity * dt, colliders[4u * c].w);
+}
+
+// The status buffer, for the step counter that places scripted colliders.
+@group(0) @binding(3) var<storage, read> status_words: array<u32, 4>;
+
+// Collider `c` placed at time `t` (a dynamic ball where it is).
+fn place(c: u32, t: f32) -> vec4<f32> {
+    let motion = colliders[4u * c + 2u];
+    let scripted = select(t, 0.0, motion.w > 0.0);
+    return vec4<f32>(colliders[4u * c].xyz + motion.xyz * scripted, colliders[4u * c].w);
+}
+
+@compute @workgroup_size(1)
+fn contacts() {
+    let t = f32(status_words[3] + 1u) / u.inverse_dt;
+    for (var k = 0u; k < u.collider_count; k++) {
+        let inverse_mass = colliders[4u * k + 2u].w;
+        if inverse_mass <= 0.0 {
+            continue;
+        }
+        let restitution = colliders[4u * k + 3u].w;
+        for (var o = 0u; o < u.collider_count; o++) {
+            if o == k {
+                continue;
+            }
+            let ball = colliders[4u * k];
+            let other = place(o, t);
+            var normal: vec3<f32>;
+            var depth: f32;
+            if other.w < 0.0 {
+                normal = colliders[4u * o + 1u].xyz;
+                depth = ball.w - dot(ball.xyz - other.xyz, normal);
+            } else {
+                let offset = ball.xyz - other.xyz;
+                let distance = length(offset);
+                normal = select(vec3<f32>(0.0, 1.0, 0.0), offset / distance, distance > 0.0);
+                depth = ball.w + other.w - distance;
+            }
+            if depth <= 0.0 {
+                continue;
+            }
+            let other_inverse_mass = colliders[4u * o + 2u].w;
+            // The ball's share of push and impulse: all of it against a scripted obstacle.
+            var share = 1.0;
+            if other_inverse_mass > 0.0 {
+                share = inverse_mass / (inverse_mass + other_inverse_mass);
+            }
+            let relative = colliders[4u * k + 2u].xyz - colliders[4u * o + 2u].xyz;
+            let approach = dot(relative, normal);
+            var change = vec3<f32>(0.0);
+            if approach < 0.0 {
+                change -= normal * ((1.0 + restitution) * approach);
+            }
+            change -= (relative - normal * approach) * colliders[4u * o + 1u].w;
+            colliders[4u * k + 2u] = vec4<f32>(colliders[4u * k + 2u].xyz + change * share, inverse_mass);
+            colliders[4u * k] = vec4<f32>(ball.xyz + normal * (depth * share), ball.w);
+            if other_inverse_mass > 0.0 {
+                let rest = 1.0 - share;
+                colliders[4u * o + 2u] = vec4<f32>(colliders[4u * o + 2u].xyz - change * rest, other_inverse_mass);
+                colliders[4u * o] = vec4<f32>(other.xyz - normal * (depth * rest), other.w);
+            }
+        }
+    }
+}
