@@ -15,8 +15,9 @@
 //! cloth, taken back from the ball: a vertex of mass `m` moved by `c` in a step of `dt` gained
 //! momentum `m c / dt`, so the ball feels `-m c / dt^2` ([`advance_balls`]). Balls then meet
 //! planes and other spheres: pushed out, their approach speed reversed times the restitution,
-//! and the collider's friction share removed from their sliding speed. They slide; they do not
-//! spin (no angular state).
+//! and friction at the contact point (Coulomb, the obstacle's `friction` as the coefficient)
+//! turning sliding into rolling: a solid ball (moment of inertia 2/5 m r^2) that slides is
+//! brought to rolling, spinning up as it slows. The cloth's friction does not spin a ball.
 
 use glam::DVec3;
 
@@ -44,6 +45,8 @@ pub struct Collider {
     pub velocity: DVec3,
     /// Set for a dynamic ball (a sphere that moves under forces).
     pub dynamics: Option<Dynamics>,
+    /// A dynamic ball's angular velocity, rad/s.
+    pub spin: DVec3,
 }
 
 /// What makes a ball dynamic.
@@ -155,6 +158,7 @@ pub fn carry_over(running: &[Collider], settings: &[Collider]) -> Vec<Collider> 
             (Shape::Sphere { center, .. }, Shape::Sphere { radius, .. }, Some(_)) => Collider {
                 shape: Shape::Sphere { center, radius },
                 velocity: now.velocity,
+                spin: now.spin,
                 ..*new
             },
             _ => *new,
@@ -227,7 +231,8 @@ fn pair_mut<T>(items: &mut [T], a: usize, b: usize) -> (&mut T, &mut T) {
 }
 
 /// A dynamic ball meets a plane or sphere: pushed out (a dynamic sphere shares the push and
-/// the impulse by mass), approach speed reversed times the restitution, friction on sliding.
+/// the impulse by mass), approach speed reversed times the restitution, Coulomb friction on
+/// the slip of the contact point.
 fn meet(ball: &mut Collider, dynamics: Dynamics, obstacle: &mut Collider, t: f64) {
     let Shape::Sphere { center, radius } = ball.shape else {
         return;
@@ -253,13 +258,26 @@ fn meet(ball: &mut Collider, dynamics: Dynamics, obstacle: &mut Collider, t: f64
     };
     let relative = ball.velocity - obstacle.velocity;
     let approach = relative.dot(normal);
-    let mut change = DVec3::ZERO;
-    if approach < 0.0 {
-        change -= normal * ((1.0 + dynamics.restitution) * approach);
-    }
-    let sliding = relative - normal * approach;
-    change -= sliding * obstacle.friction;
+    let bounce = if approach < 0.0 {
+        -(1.0 + dynamics.restitution) * approach
+    } else {
+        0.0
+    };
+    // Slip of the contact point; stopping it takes 2/7 of it from the centre's velocity and
+    // the rest from the spin (solid ball), within mu times the normal speed change.
+    let arm = -normal * radius;
+    let contact = relative + ball.spin.cross(arm);
+    let slip = contact - normal * contact.dot(normal);
+    let wanted = slip * (2.0 / 7.0);
+    let limit = obstacle.friction * bounce;
+    let friction = if wanted.length() > limit {
+        wanted * (limit / wanted.length())
+    } else {
+        wanted
+    };
+    let change = normal * bounce - friction;
     ball.velocity += change * share;
+    ball.spin += arm.cross(-friction) * (share * 2.5 / (radius * radius));
     if let Shape::Sphere { center, .. } = &mut ball.shape {
         *center += normal * (depth * share);
     }
@@ -285,6 +303,7 @@ mod tests {
             friction: 0.0,
             velocity: DVec3::ZERO,
             dynamics: None,
+            spin: DVec3::ZERO,
         };
         let p = resolve(
             &[sphere],
@@ -307,6 +326,7 @@ mod tests {
             friction: 0.0,
             velocity: DVec3::X,
             dynamics: None,
+            spin: DVec3::ZERO,
         };
         // At t = 2 the ball is centred at x = 2: a point at x = 2.2 is inside and pushed out.
         let p = resolve(
@@ -339,6 +359,7 @@ mod tests {
             friction,
             velocity: DVec3::ZERO,
             dynamics: None,
+            spin: DVec3::ZERO,
         };
         let (from, to) = (DVec3::new(0.0, 0.01, 0.0), DVec3::new(0.5, -0.1, 0.0));
         let slippery = resolve(&[plane(0.0)], 0.0, 1.0, 0.01, from, to);
@@ -350,5 +371,69 @@ mod tests {
             resolve(&[plane(1.0)], 0.0, 1.0, 0.01, from, from + DVec3::X),
             from + DVec3::X
         );
+    }
+
+    #[test]
+    fn a_pushed_ball_on_the_ground_rolls_at_five_sevenths_of_the_push() {
+        let ground = Collider {
+            shape: Shape::Plane {
+                point: DVec3::ZERO,
+                normal: DVec3::Y,
+            },
+            friction: 0.5,
+            velocity: DVec3::ZERO,
+            dynamics: None,
+            spin: DVec3::ZERO,
+        };
+        let (mass, radius, force) = (2.0, 0.1, 3.0);
+        let ball = Collider {
+            shape: Shape::Sphere {
+                center: DVec3::new(0.0, radius, 0.0),
+                radius,
+            },
+            friction: 0.0,
+            velocity: DVec3::ZERO,
+            dynamics: Some(Dynamics {
+                mass,
+                force: DVec3::new(force, 0.0, 0.0),
+                restitution: 0.0,
+            }),
+            spin: DVec3::ZERO,
+        };
+        let mut colliders = [ground, ball];
+        let (dt, steps) = (1e-3, 1000);
+        let gravity = DVec3::new(0.0, -9.81, 0.0);
+        for k in 1..=steps {
+            advance_balls(
+                &mut colliders,
+                &[DVec3::ZERO; 2],
+                gravity,
+                dt,
+                k as f64 * dt,
+            );
+        }
+        // Rolling without slipping: a = F / (m (1 + 2/5)); spin = v / r about -z.
+        let t = steps as f64 * dt;
+        let expected = 5.0 / 7.0 * force / mass * t;
+        let ball = colliders[1];
+        assert!(
+            (ball.velocity.x - expected).abs() < 1e-2 * expected,
+            "{}",
+            ball.velocity
+        );
+        assert!((ball.spin.z + ball.velocity.x / radius).abs() < 1e-2 * expected / radius);
+        // Without friction it slides at the full F / m.
+        colliders[0].friction = 0.0;
+        colliders[1].velocity = DVec3::ZERO;
+        for k in 1..=steps {
+            advance_balls(
+                &mut colliders,
+                &[DVec3::ZERO; 2],
+                gravity,
+                dt,
+                k as f64 * dt,
+            );
+        }
+        assert!((colliders[1].velocity.x - force / mass * t).abs() < 1e-2 * force / mass * t);
     }
 }

@@ -848,6 +848,7 @@ impl SceneFile {
                 friction: c.friction,
                 velocity,
                 dynamics,
+                spin: DVec3::ZERO,
             });
         }
         let collision_thickness = self.collision.as_ref().map_or(0.0, |c| c.thickness);

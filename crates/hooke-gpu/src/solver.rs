@@ -992,8 +992,8 @@ fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
             let friction = c.friction as f32;
             let (place, surface) = match c.shape {
                 Shape::Sphere { center, radius } => {
-                    let p = center.as_vec3();
-                    ([p.x, p.y, p.z, radius as f32], [0.0, 1.0, 0.0, friction])
+                    let (p, w) = (center.as_vec3(), c.spin.as_vec3());
+                    ([p.x, p.y, p.z, radius as f32], [w.x, w.y, w.z, friction])
                 }
                 Shape::Plane { point, normal } => {
                     let (p, n) = (point.as_vec3(), normal.as_vec3());
@@ -1586,10 +1586,11 @@ impl GpuSolver {
             {
                 let base = (k * 4 * 16) as u64;
                 if collider.dynamics.is_some() {
+                    // Only the friction of entry 1: its xyz is the ball's spin.
                     ctx.queue.write_buffer(
                         &pass.colliders,
-                        base + 16,
-                        bytemuck::cast_slice(&entry[1..2]),
+                        base + 28,
+                        bytemuck::bytes_of(&entry[1][3]),
                     );
                     ctx.queue.write_buffer(
                         &pass.colliders,
@@ -1885,6 +1886,7 @@ impl Solver for GpuSolver {
                 *center = glam::Vec3::from_slice(&entry[0][..3]).as_dvec3();
             }
             collider.velocity = glam::Vec3::from_slice(&entry[2][..3]).as_dvec3();
+            collider.spin = glam::Vec3::from_slice(&entry[1][..3]).as_dvec3();
         }
         placed
     }

@@ -485,3 +485,48 @@ fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_the_gpu() {
         GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
     hooke_core::test_scenes::check_ball_dropped_on_sheet(&mut solver, &scene);
 }
+
+#[test]
+fn a_pushed_ball_rolls_on_the_gpu_as_on_the_reference() {
+    use hooke_core::collide::{Collider, Shape};
+    let Some(context) = context() else { return };
+    let mut scene = hooke_core::test_scenes::ball_onto_sheet();
+    // The ball sits on a ground plane beside the sheet and is pushed along x.
+    let ball = &mut scene.params.colliders[0];
+    ball.shape = Shape::Sphere {
+        center: DVec3::new(2.0, 0.15, 0.0),
+        radius: 0.15,
+    };
+    ball.dynamics.as_mut().expect("dynamic").force = DVec3::new(1.0, 0.0, 0.0);
+    scene.params.colliders.push(Collider {
+        shape: Shape::Plane {
+            point: DVec3::ZERO,
+            normal: DVec3::Y,
+        },
+        friction: 0.5,
+        velocity: DVec3::ZERO,
+        dynamics: None,
+        spin: DVec3::ZERO,
+    });
+    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+    let mut gpu =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    reference.step(2000).expect("stable");
+    gpu.step(2000).expect("stable");
+    let (expected, actual) = (reference.colliders()[0], gpu.colliders()[0]);
+    // Rolling: 5/7 of F/m, spinning about -z at v/r.
+    let t = 2000.0 * scene.params.dt;
+    let rolling = 5.0 / 7.0 * 1.0 / 0.2 * t;
+    assert!(
+        (expected.velocity.x - rolling).abs() < 0.02 * rolling,
+        "{}",
+        expected.velocity
+    );
+    assert!(
+        (actual.velocity - expected.velocity).length() < 1e-3 * rolling,
+        "gpu {} vs reference {}",
+        actual.velocity,
+        expected.velocity
+    );
+    assert!((actual.spin - expected.spin).length() < 1e-3 * rolling / 0.15);
+}

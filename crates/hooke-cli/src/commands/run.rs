@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Args;
+use hooke_core::collide::Shape;
 use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
 use hooke_core::mesh::{write_ply_frame, write_ply_state};
 use hooke_core::scene::Scene;
@@ -60,6 +61,16 @@ struct Summary {
     max_strain: f64,
     frames_written: usize,
     output: PathBuf,
+    /// Where the dynamic balls ended.
+    balls: Vec<BallSummary>,
+}
+
+#[derive(Debug, Serialize)]
+struct BallSummary {
+    /// Index of the `[[collider]]` entry.
+    collider: usize,
+    center: [f64; 3],
+    velocity: [f64; 3],
 }
 
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
@@ -198,6 +209,20 @@ fn summarize(
         max_strain: max_strain(&scene.model, &state.positions).0,
         frames_written,
         output: output.to_path_buf(),
+        balls: solver
+            .colliders()
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.dynamics.is_some())
+            .filter_map(|(k, c)| match c.shape {
+                Shape::Sphere { center, .. } => Some(BallSummary {
+                    collider: k,
+                    center: center.to_array(),
+                    velocity: c.velocity.to_array(),
+                }),
+                Shape::Plane { .. } => None,
+            })
+            .collect(),
     }
 }
 
@@ -220,6 +245,14 @@ fn print_summary(s: &Summary, e: &Energy) {
         e.gravitational
     );
     println!("max strain   {:.4}%", 100.0 * s.max_strain);
+    for ball in &s.balls {
+        let [x, y, z] = ball.center;
+        let speed = glam::DVec3::from_array(ball.velocity).length();
+        println!(
+            "ball         collider {} at ({x:.3}, {y:.3}, {z:.3}) m, {speed:.3} m/s",
+            ball.collider
+        );
+    }
     println!(
         "output       {} ({} frames, final-state.ply, summary.json)",
         s.output.display(),

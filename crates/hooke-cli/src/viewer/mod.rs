@@ -25,6 +25,7 @@ use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
 use crate::scene_loading::load_scene;
+use panel::PushDirection;
 use simulation::Simulation;
 
 #[derive(Debug, Args)]
@@ -273,6 +274,16 @@ impl Viewer {
                 };
                 self.camera.zoom(0.9f32.powf(lines));
             }
+            WindowEvent::KeyboardInput { event, .. }
+                if let Some(direction) = push_key(&event.logical_key) =>
+            {
+                let pushing = event.state == ElementState::Pressed;
+                self.simulation.push(if pushing {
+                    direction.relative_to(&self.camera)
+                } else {
+                    glam::DVec3::ZERO
+                });
+            }
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
                 match &event.logical_key {
                     Key::Named(NamedKey::Space) => self.simulation.paused = !self.simulation.paused,
@@ -412,9 +423,10 @@ impl Viewer {
         }
         let params = self.simulation.params();
         self.options.wind = params.wind.map(|w| w.velocity.as_vec3());
-        let t = self.simulation.steps_taken() as f64 * params.dt;
-        let colliders: Vec<_> = params.colliders.iter().map(|c| c.at(t)).collect();
-        self.renderer.set_colliders(&self.context, &colliders);
+        self.renderer
+            .set_colliders(&self.context, &self.simulation.colliders_to_draw());
+        self.simulation
+            .copy_spheres(&mut encoder, self.renderer.sphere_buffer());
         self.renderer.encode(
             &self.context,
             &mut encoder,
@@ -596,5 +608,17 @@ impl Viewer {
         Image { size: [w, h], rgba }.save_png(path)?;
         eprintln!("screenshot written to {}", path.display());
         Ok(())
+    }
+}
+
+/// The ball push an arrow key or PageUp stands for.
+fn push_key(key: &Key) -> Option<PushDirection> {
+    match key {
+        Key::Named(NamedKey::ArrowLeft) => Some(PushDirection::Left),
+        Key::Named(NamedKey::ArrowRight) => Some(PushDirection::Right),
+        Key::Named(NamedKey::ArrowUp) => Some(PushDirection::Away),
+        Key::Named(NamedKey::ArrowDown) => Some(PushDirection::Toward),
+        Key::Named(NamedKey::PageUp) => Some(PushDirection::Up),
+        _ => None,
     }
 }

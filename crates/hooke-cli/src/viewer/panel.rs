@@ -131,6 +131,7 @@ pub fn show(
             if changed {
                 simulation.apply_params();
             }
+            ball_controls(ui, simulation, camera);
             ui.separator();
             ui.checkbox(&mut options.wireframe, "springs (wireframe)");
             ui.checkbox(&mut options.color_by_strain, "colour by strain");
@@ -161,4 +162,69 @@ pub fn show(
                 ui.colored_label(egui::Color32::RED, message);
             }
         });
+}
+
+/// Hold-to-push buttons for the dynamic balls (the arrow keys and PageUp do the same).
+fn ball_controls(ui: &mut egui::Ui, simulation: &mut Simulation, camera: &Camera) {
+    let balls = simulation.balls();
+    if balls.is_empty() {
+        return;
+    }
+    ui.separator();
+    ui.label("push a ball (hold; or arrow keys, PageUp)");
+    let mut selected = simulation.selected_ball;
+    egui::ComboBox::from_label("ball")
+        .selected_text(selected.map_or("-".to_owned(), |k| format!("collider {k}")))
+        .show_ui(ui, |ui| {
+            for &k in &balls {
+                ui.selectable_value(&mut selected, Some(k), format!("collider {k}"));
+            }
+        });
+    if selected != simulation.selected_ball {
+        simulation.push(glam::DVec3::ZERO);
+        simulation.selected_ball = selected;
+    }
+    ui.add(egui::Slider::new(&mut simulation.push_newtons, 0.0..=50.0).text("force (N)"));
+    let mut held = None;
+    ui.horizontal(|ui| {
+        for (label, direction) in [
+            ("left", PushDirection::Left),
+            ("away", PushDirection::Away),
+            ("toward", PushDirection::Toward),
+            ("right", PushDirection::Right),
+            ("up", PushDirection::Up),
+        ] {
+            if ui.button(label).is_pointer_button_down_on() {
+                held = Some(direction);
+            }
+        }
+    });
+    simulation.push(held.map_or(glam::DVec3::ZERO, |d| d.relative_to(camera)));
+}
+
+/// Directions to push a ball, relative to the view (horizontal ones) or up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PushDirection {
+    Left,
+    Right,
+    Away,
+    Toward,
+    Up,
+}
+
+impl PushDirection {
+    /// The world direction for the camera's current heading.
+    pub fn relative_to(self, camera: &Camera) -> glam::DVec3 {
+        let (sin_yaw, cos_yaw) = f64::from(camera.yaw).sin_cos();
+        // The camera sits at yaw around the target: away from it is -(sin, 0, cos).
+        let away = glam::DVec3::new(-sin_yaw, 0.0, -cos_yaw);
+        let right = glam::DVec3::new(cos_yaw, 0.0, -sin_yaw);
+        match self {
+            Self::Left => -right,
+            Self::Right => right,
+            Self::Away => away,
+            Self::Toward => -away,
+            Self::Up => glam::DVec3::Y,
+        }
+    }
 }

@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
+use hooke_core::collide::{self, Collider};
 use hooke_core::scene::Scene;
 use hooke_core::selfcollide::SelfCollision;
 use hooke_core::stability::stability_limit;
@@ -72,6 +73,10 @@ pub struct Simulation {
     pub wind_speed: f64,
     pub wind_coefficient: f64,
     pub self_collision_enabled: bool,
+    /// The ball the panel and keys push (collider index), how hard, and where to now.
+    pub selected_ball: Option<usize>,
+    pub push_newtons: f64,
+    push_direction: DVec3,
     /// The scene's self-collision setting, or one made for the mesh.
     pub self_collision: SelfCollision,
     pub paused: bool,
@@ -117,6 +122,21 @@ impl Simulation {
             wind_speed: speed,
             wind_coefficient: wind.map_or(0.5, |w| w.coefficient),
             self_collision_enabled: scene.params.self_collision.is_some(),
+            selected_ball: scene
+                .params
+                .colliders
+                .iter()
+                .position(|c| c.dynamics.is_some()),
+            // Three times the heaviest ball's weight: enough to roll it into the cloth.
+            push_newtons: 3.0
+                * 9.81
+                * scene
+                    .params
+                    .colliders
+                    .iter()
+                    .filter_map(|c| c.dynamics.map(|d| d.mass))
+                    .fold(0.0, f64::max),
+            push_direction: DVec3::ZERO,
             self_collision: scene
                 .params
                 .self_collision
@@ -150,6 +170,25 @@ impl Simulation {
 
     pub fn steps_taken(&self) -> u64 {
         self.solver().steps_taken()
+    }
+
+    /// The colliders to draw this frame: the CPU solver's own (no cost), or on the GPU the
+    /// scripted places (dynamic balls are then copied in by [`Simulation::copy_spheres`]).
+    pub fn colliders_to_draw(&self) -> Vec<Collider> {
+        match &self.active {
+            Active::Gpu(_) => {
+                let t = self.steps_taken() as f64 * self.dt();
+                collide::placed(&self.params().colliders, t)
+            }
+            Active::Cpu(s, _) => s.colliders(),
+        }
+    }
+
+    /// Records copies of the GPU solver's ball places into the renderer's sphere buffer.
+    pub fn copy_spheres(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::Buffer) {
+        if let Active::Gpu(solver) = &self.active {
+            solver.copy_spheres(encoder, target);
+        }
     }
 
     fn solver(&self) -> &dyn Solver {
@@ -199,10 +238,21 @@ impl Simulation {
                 .into_iter()
                 .chain(self.scene.params.drags.iter().cloned())
                 .collect(),
-            colliders: self.scene.params.colliders.clone(),
+            colliders: self.pushed_colliders(),
             collision_thickness: self.scene.params.collision_thickness,
             self_collision: self.self_collision_enabled.then_some(self.self_collision),
         }
+    }
+
+    /// The scene's colliders, the selected ball with the user's push added to its force.
+    fn pushed_colliders(&self) -> Vec<Collider> {
+        let mut colliders = self.scene.params.colliders.clone();
+        if let Some(k) = self.selected_ball
+            && let Some(dynamics) = colliders.get_mut(k).and_then(|c| c.dynamics.as_mut())
+        {
+            dynamics.force += self.push_direction * self.push_newtons;
+        }
+        colliders
     }
 
     /// Sends the controls' parameters to the solver.
@@ -227,8 +277,19 @@ impl Simulation {
         self.replace_solver(choice, Some(state));
     }
 
+    /// A new solver; with `state`, it continues the running simulation (cloth and balls),
+    /// without, it starts the scene again.
     fn replace_solver(&mut self, choice: Choice, state: Option<State>) {
-        match build(&self.context, choice, &self.model, &self.params()) {
+        let mut params = self.params();
+        if state.is_some() {
+            // Dynamic balls carry on from where they are.
+            for (setting, now) in params.colliders.iter_mut().zip(self.solver().colliders()) {
+                if setting.dynamics.is_some() {
+                    (setting.shape, setting.velocity) = (now.shape, now.velocity);
+                }
+            }
+        }
+        match build(&self.context, choice, &self.model, &params) {
             Ok(mut active) => {
                 if let Some(state) = state {
                     match &mut active {
@@ -245,10 +306,24 @@ impl Simulation {
     }
 
     pub fn reset(&mut self) {
-        let rest = State::at_rest(self.model.initial_positions.clone());
-        self.solver_mut().write_state(&rest);
-        self.message = None;
+        self.replace_solver(self.choice, None);
         self.paused = false;
+    }
+
+    /// Dynamic balls the panel and keys can push, as collider indices.
+    pub fn balls(&self) -> Vec<usize> {
+        let colliders = &self.scene.params.colliders;
+        (0..colliders.len())
+            .filter(|&k| colliders[k].dynamics.is_some())
+            .collect()
+    }
+
+    /// Pushes the selected ball along `direction` (unit or zero) with `push_newtons`.
+    pub fn push(&mut self, direction: DVec3) {
+        if direction != self.push_direction {
+            self.push_direction = direction;
+            self.apply_params();
+        }
     }
 
     /// Records this frame's steps. GPU steps go into `encoder`; CPU steps run now and their

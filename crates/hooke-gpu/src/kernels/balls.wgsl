@@ -93,12 +93,26 @@ fn contacts() {
             }
             let relative = colliders[4u * k + 2u].xyz - colliders[4u * o + 2u].xyz;
             let approach = dot(relative, normal);
-            var change = vec3<f32>(0.0);
+            var bounce = 0.0;
             if approach < 0.0 {
-                change -= normal * ((1.0 + restitution) * approach);
+                bounce = -(1.0 + restitution) * approach;
             }
-            change -= (relative - normal * approach) * colliders[4u * o + 1u].w;
+            // Slip of the contact point; stopping it takes 2/7 of it from the centre's
+            // velocity, the rest from the spin, within mu times the normal speed change.
+            let spin = colliders[4u * k + 1u];
+            let arm = -normal * ball.w;
+            let contact = relative + cross(spin.xyz, arm);
+            let slip = contact - normal * dot(contact, normal);
+            let wanted = slip * (2.0 / 7.0);
+            let limit = colliders[4u * o + 1u].w * bounce;
+            var friction = wanted;
+            if length(wanted) > limit {
+                friction = wanted * (limit / length(wanted));
+            }
+            let change = normal * bounce - friction;
             colliders[4u * k + 2u] = vec4<f32>(colliders[4u * k + 2u].xyz + change * share, inverse_mass);
+            let spun = spin.xyz + cross(arm, -friction) * (share * 2.5 / (ball.w * ball.w));
+            colliders[4u * k + 1u] = vec4<f32>(spun, spin.w);
             colliders[4u * k] = vec4<f32>(ball.xyz + normal * (depth * share), ball.w);
             if other_inverse_mass > 0.0 {
                 let rest = 1.0 - share;

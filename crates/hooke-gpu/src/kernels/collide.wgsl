@@ -7,8 +7,8 @@
 @group(0) @binding(2) var<storage, read_write> next_positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> deltas: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
-// Four entries per collider: (centre or point xyz, radius; < 0 for a plane), (normal xyz,
-// friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
+// Four entries per collider: (centre or point xyz, radius; < 0 for a plane), (a plane's
+// normal or a ball's spin xyz, friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
 // restitution). A scripted collider's first entry is its place at time 0; a dynamic ball's is
 // where it is now (balls.wgsl moves it).
 @group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;

@@ -119,6 +119,9 @@ pub struct SceneRenderer {
     sphere_mesh_vertices: u32,
     spheres: wgpu::Buffer,
     sphere_count: u32,
+    /// Per sphere: applied force direction and arrow length (zero length: no arrow).
+    sphere_forces: wgpu::Buffer,
+    ball_force: wgpu::RenderPipeline,
     frame: wgpu::Buffer,
     counts: wgpu::Buffer,
     triangles: wgpu::Buffer,
@@ -238,6 +241,8 @@ impl SceneRenderer {
             sphere_mesh_vertices: unit_sphere.len() as u32,
             spheres: storage(context, "collider spheres", &[[0.0f32; 4]], none),
             sphere_count: 0,
+            sphere_forces: storage(context, "ball forces", &[[0.0f32; 4]], none),
+            ball_force: pipeline("ball forces", "vs_ball_force", "fs_flat", lines),
             frame,
             counts,
             triangles: storage(context, "render triangles", &triangles, none),
@@ -264,6 +269,13 @@ impl SceneRenderer {
         self.bounds
     }
 
+    /// The spheres drawn, one `vec4` (centre, radius) each in collider order, `COPY_DST`: a
+    /// solver may copy its balls' current places in (`GpuSolver::copy_spheres`) after
+    /// [`SceneRenderer::set_colliders`] and before drawing.
+    pub fn sphere_buffer(&self) -> &wgpu::Buffer {
+        &self.spheres
+    }
+
     /// Shows the scene's colliders (placed where they are now; call again as they move):
     /// spheres are drawn, and the ground moves to the highest horizontal plane below the cloth.
     pub fn set_colliders(&mut self, context: &GpuContext, colliders: &[Collider]) {
@@ -277,16 +289,39 @@ impl SceneRenderer {
                 Shape::Plane { .. } => None,
             })
             .collect();
+        let forces: Vec<[f32; 4]> = colliders
+            .iter()
+            .filter(|c| matches!(c.shape, Shape::Sphere { .. }))
+            .map(|c| match (c.dynamics, c.shape) {
+                (Some(d), Shape::Sphere { radius, .. }) if d.force.length() > 0.0 => {
+                    // One radius long, up to three as the push reaches the ball's weight.
+                    let weight = d.mass * 9.81;
+                    let length = radius * (1.0 + 2.0 * (d.force.length() / weight).min(1.0));
+                    let f = d.force.normalize().as_vec3();
+                    [f.x, f.y, f.z, length as f32]
+                }
+                _ => [0.0; 4],
+            })
+            .collect();
         if !spheres.is_empty() && spheres.len() as u32 == self.sphere_count {
             // Moving colliders: same spheres, new places.
             context
                 .queue
                 .write_buffer(&self.spheres, 0, bytemuck::cast_slice(&spheres));
+            context
+                .queue
+                .write_buffer(&self.sphere_forces, 0, bytemuck::cast_slice(&forces));
         } else if !spheres.is_empty() {
             self.spheres = storage(
                 context,
                 "collider spheres",
                 &spheres,
+                wgpu::BufferUsages::COPY_DST,
+            );
+            self.sphere_forces = storage(
+                context,
+                "ball forces",
+                &forces,
                 wgpu::BufferUsages::COPY_DST,
             );
         }
@@ -402,6 +437,16 @@ impl SceneRenderer {
                 (9, self.sphere_mesh.as_entire_binding()),
             ],
         );
+        let force_group = bind_group(
+            context,
+            "ball forces",
+            &self.ball_force.get_bind_group_layout(0),
+            &[
+                (0, self.frame.as_entire_binding()),
+                (8, self.spheres.as_entire_binding()),
+                (10, self.sphere_forces.as_entire_binding()),
+            ],
+        );
         let depth = self.depth_view(context, size);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("scene"),
@@ -438,6 +483,9 @@ impl SceneRenderer {
             pass.set_pipeline(&self.sphere);
             pass.set_bind_group(0, &sphere_group, &[]);
             pass.draw(0..self.sphere_mesh_vertices, 0..self.sphere_count);
+            pass.set_pipeline(&self.ball_force);
+            pass.set_bind_group(0, &force_group, &[]);
+            pass.draw(0..6, 0..self.sphere_count);
         }
         pass.set_pipeline(&self.cloth);
         pass.set_bind_group(0, &cloth_group, &[]);

@@ -66,8 +66,11 @@ impl OffscreenRun {
             });
         self.solver.encode_steps(&mut encoder, steps);
         let t = self.solver.steps_taken() as f64 * self.params.dt;
-        let colliders: Vec<_> = self.params.colliders.iter().map(|c| c.at(t)).collect();
+        let colliders = hooke_core::collide::placed(&self.params.colliders, t);
         self.renderer.set_colliders(&context, &colliders);
+        // Dynamic balls are where the GPU put them: copied, not read back.
+        self.solver
+            .copy_spheres(&mut encoder, self.renderer.sphere_buffer());
         self.renderer.encode(
             &context,
             &mut encoder,

@@ -205,3 +205,27 @@ fn fs_sphere(in: SphereOut) -> @location(0) vec4<f32> {
     let color = vec3<f32>(0.35, 0.55, 0.40) * (0.35 + 0.65 * diffuse);
     return vec4<f32>(fog(color, in.world), 1.0);
 }
+
+// Forces applied to dynamic balls (the paper's Fig. 4 arrows): per sphere, the force's
+// direction (xyz) and the arrow's length (w, 0 for none), drawn from the ball's surface.
+@group(0) @binding(10) var<storage, read> sphere_forces: array<vec4<f32>>;
+
+@vertex
+fn vs_ball_force(@builtin(vertex_index) index: u32, @builtin(instance_index) sphere: u32) -> LineOut {
+    let s = spheres[sphere];
+    let force = sphere_forces[sphere];
+    let direction = force.xyz;
+    let side = normalize(cross(direction, vec3<f32>(0.0, 1.0, 0.0)) + vec3<f32>(1e-6, 0.0, 1e-6));
+    let start = s.xyz + direction * s.w * 1.05;
+    let tip = start + direction * force.w;
+    let head = force.w * 0.3;
+    let points = array<vec3<f32>, 6>(
+        start, tip,
+        tip, tip - direction * head + side * head * 0.5,
+        tip, tip - direction * head - side * head * 0.5,
+    );
+    var out: LineOut;
+    out.clip = frame.view_projection * vec4<f32>(points[index], 1.0);
+    out.color = vec3<f32>(0.85, 0.35, 0.10);
+    return out;
+}
