@@ -491,8 +491,10 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
     }
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
-    // The GPU solver (drawn from its own buffers) and the CPU one (uploaded each frame).
-    for backend in ["gpu", "cpu"] {
+    // The GPU solver (drawn from its own buffers) and the CPU one (uploaded each frame); and
+    // the Fig. 4 scene, whose dynamic balls are drawn from GPU memory too.
+    let fig4 = shipped_scene("wind-and-balls.toml");
+    for (scene, backend) in [(&scene, "gpu"), (&scene, "cpu"), (&fig4, "gpu")] {
         let shot = dir.path().join(format!("viewer-{backend}.png"));
         let result = Command::new("xvfb-run")
             .args([
@@ -503,7 +505,7 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
                 "view",
             ])
             .args([
-                path_str(&scene),
+                path_str(scene),
                 "--frames",
                 "30",
                 "--size",
@@ -533,6 +535,155 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
         assert!(
             red > image.rgba.len() / 4 / 200,
             "{backend}: only {red} cloth pixels"
+        );
+    }
+}
+
+fn shipped_scene(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenes")
+        .join(name)
+}
+
+#[test]
+fn paper_fig3_and_fig4_scenes_run_and_render() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for name in ["self-collision.toml", "wind-and-balls.toml"] {
+        let scene = shipped_scene(name);
+        let out = dir.path().join(name);
+        let result = hooke(&[
+            "run",
+            path_str(&scene),
+            "--steps",
+            "300",
+            "--output",
+            path_str(&out),
+        ]);
+        assert!(result.status.success(), "{name}: {}", text(&result.stderr));
+        let stdout = text(&result.stdout);
+        if name == "wind-and-balls.toml" {
+            // Three dynamic balls, reported where they ended.
+            assert_eq!(
+                stdout.matches("ball         collider").count(),
+                3,
+                "{stdout}"
+            );
+            let summary = std::fs::read_to_string(out.join("summary.json")).expect("summary");
+            assert!(summary.contains("\"balls\""), "{summary}");
+        }
+        if !gpu_available() {
+            continue;
+        }
+        let png = dir.path().join(format!("{name}.png"));
+        let result = hooke(&[
+            "render",
+            path_str(&scene),
+            "--out",
+            path_str(&png),
+            "--frames",
+            "2",
+            "--size",
+            "64x48",
+        ]);
+        assert!(result.status.success(), "{name}: {}", text(&result.stderr));
+        assert!(png.exists());
+    }
+}
+
+#[test]
+fn selfcollision_study_prints_missed_pairs_and_cost() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = write(
+        dir.path(),
+        "fold.toml",
+        r#"
+[mesh]
+generator = "grid"
+resolution = [16, 16]
+size = [0.5, 0.5]
+plane = "xy"
+center = [0.0, 0.27, 0.0]
+
+[material]
+mass = { total = 0.03 }
+stiffness = 30.0
+
+[wind]
+velocity = [0.0, 0.0, 0.6]
+coefficient = 0.3
+
+[collision]
+thickness = 0.004
+
+[[collider]]
+kind = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+friction = 0.6
+
+[self_collision]
+distance = 0.016
+
+[simulation]
+steps = 3000
+"#,
+    );
+    let result = hooke(&[
+        "selfcollision-study",
+        path_str(&scene),
+        "--grids",
+        "1,4",
+        "--cell-sizes",
+        "1,2",
+        "--dt-scales",
+        "1",
+        "--samples",
+        "3",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let settings = report["settings"].as_array().expect("settings");
+    assert_eq!(settings.len(), 4);
+    let exact = settings[0]["exact_pairs"].as_u64().expect("pairs");
+    assert!(exact > 0, "the folded cloth has close pairs: {report}");
+    for row in settings {
+        let missed = row["missed_share"].as_f64().expect("share");
+        assert!((0.0..=1.0).contains(&missed), "{row}");
+        assert!(row["cost_ms"].as_f64().expect("cost") > 0.0);
+    }
+    let steps = report["time_steps"].as_array().expect("time steps");
+    let without = steps[0]["interpenetrating_without"]
+        .as_u64()
+        .expect("count");
+    let with = steps[0]["interpenetrating_with"].as_u64().expect("count");
+    assert!(with < without, "{with} with, {without} without");
+}
+
+#[test]
+fn bench_shows_the_collision_phase_with_self_collision() {
+    let result = hooke(&[
+        "bench",
+        "--sizes",
+        "32",
+        "--irregular",
+        "0",
+        "--self-collision",
+        "2",
+        "--steps",
+        "20",
+        "--warmup",
+        "5",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    for row in report["rows"].as_array().expect("rows") {
+        assert!(
+            row["collision_ms"].as_f64().expect("collision phase") > 0.0,
+            "{row}"
         );
     }
 }

@@ -1071,6 +1071,53 @@ select = ["corners"]
     }
 
     #[test]
+    fn dynamic_balls_and_self_collision_are_read_and_checked() {
+        let ball = "[[collider]]\nkind = \"sphere\"\ncenter = [0, 2, 0]\nradius = 0.2\nmass = 0.5\nforce = [1, 0, 0]\n";
+        let text = format!("{CLOTH}\n{ball}\n[self_collision]\ndistance = 0.01\ngrids = 3\n");
+        let scene = build(&text).expect("builds");
+        let dynamics = scene.params.colliders[0].dynamics.expect("dynamic");
+        assert_eq!((dynamics.mass, dynamics.restitution), (0.5, 0.3));
+        assert_eq!(dynamics.force, DVec3::X);
+        let config = scene.params.self_collision.expect("self-collision");
+        assert_eq!((config.grids, config.window), (3, 4));
+        assert_eq!(config.cell_size, 0.02);
+        for (from, to, message) in [
+            (
+                "mass = 0.5",
+                "mass = 0",
+                "collider[0].mass: must be a positive number, found 0",
+            ),
+            (
+                "force = [1, 0, 0]",
+                "force = [1, 0, 0]\nrestitution = 2",
+                "collider[0].restitution: must be 0..=1, found 2",
+            ),
+            (
+                "grids = 3",
+                "grids = 0",
+                "self_collision.grids: must be 1..=16, found 0",
+            ),
+            (
+                "distance = 0.01",
+                "distance = -0.01",
+                "self_collision.distance: must be a positive number, found -0.01",
+            ),
+        ] {
+            let error = build(&text.replace(from, to)).unwrap_err().to_string();
+            assert!(error.contains(message), "{error}");
+        }
+        let unpushed = text.replace("mass = 0.5\n", "");
+        assert!(
+            build(&unpushed)
+                .unwrap_err()
+                .to_string()
+                .contains("collider[0].force: applies only to a ball with a mass")
+        );
+        let off = text.replace("grids = 3", "grids = 3\nenabled = false");
+        assert!(build(&off).expect("builds").params.self_collision.is_none());
+    }
+
+    #[test]
     fn colliders_are_read_and_checked() {
         let text = format!(
             "{CLOTH}\n[collision]\nthickness = 0.01\n[[collider]]\nkind = \"sphere\"\ncenter = [0, -0.5, 0]\nradius = 0.3\nfriction = 0.2\n[[collider]]\nkind = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 2, 0]\n"
