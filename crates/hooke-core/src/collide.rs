@@ -6,9 +6,10 @@
 //! velocity-level Coulomb model. The new velocity, `(x_new - x) / dt`, follows from the
 //! corrected position, so bounce and sliding need no separate velocity update.
 //!
-//! A kinematic collider moves on a scripted straight path: at time `t` it sits at its scene
-//! position plus `velocity * t`. Friction then acts on motion relative to the collider, so a
-//! moving ball drags the cloth it touches along.
+//! A kinematic collider moves on a script: a straight path (at time `t` it sits at its scene
+//! position plus `velocity * t`) or a [`KeyframePath`] through keyframes, linear between them, held
+//! at the ends or repeated. Friction then acts on motion relative to the collider, so a moving
+//! ball drags the cloth it touches along.
 //!
 //! A dynamic ball (a sphere with [`Dynamics`]) is a rigid body: gravity, an applied force and
 //! the cloth's reaction move it. The reaction is the momentum the collision response gave the
@@ -47,6 +48,64 @@ pub struct Collider {
     pub dynamics: Option<Dynamics>,
     /// A dynamic ball's angular velocity, rad/s.
     pub spin: DVec3,
+    /// A scripted path through keyframes (then `velocity` is the path's, set by [`Collider::at`]).
+    pub path: Option<KeyframePath>,
+}
+
+/// Most keyframes a path holds.
+pub const MAX_KEYFRAMES: usize = 8;
+
+/// Keyframes `(time s, position m)` of a collider's centre or point; between them it moves in
+/// straight lines at constant speed. Before the first it waits there, after the last it stays
+/// there, unless `repeat`, when the path starts over every `last - first` seconds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KeyframePath {
+    keys: [(f64, DVec3); MAX_KEYFRAMES],
+    count: usize,
+    pub repeat: bool,
+}
+
+impl KeyframePath {
+    /// `None` unless there are 2..=MAX_KEYFRAMES keyframes with strictly increasing times.
+    pub fn new(keyframes: &[(f64, DVec3)], repeat: bool) -> Option<Self> {
+        let ordered = keyframes.windows(2).all(|w| w[1].0 > w[0].0);
+        if !(2..=MAX_KEYFRAMES).contains(&keyframes.len()) || !ordered {
+            return None;
+        }
+        let mut keys = [(0.0, DVec3::ZERO); MAX_KEYFRAMES];
+        keys[..keyframes.len()].copy_from_slice(keyframes);
+        Some(Self {
+            keys,
+            count: keyframes.len(),
+            repeat,
+        })
+    }
+
+    pub fn keyframes(&self) -> &[(f64, DVec3)] {
+        &self.keys[..self.count]
+    }
+
+    /// Position and velocity at time `t`.
+    pub fn sample(&self, t: f64) -> (DVec3, DVec3) {
+        let keys = self.keyframes();
+        let (first, last) = (keys[0], keys[self.count - 1]);
+        let t = if self.repeat {
+            first.0 + (t - first.0).rem_euclid(last.0 - first.0)
+        } else {
+            t
+        };
+        if t <= first.0 {
+            return (first.1, DVec3::ZERO);
+        }
+        for pair in keys.windows(2) {
+            let ((t0, p0), (t1, p1)) = (pair[0], pair[1]);
+            if t < t1 {
+                let velocity = (p1 - p0) / (t1 - t0);
+                return (p0 + velocity * (t - t0), velocity);
+            }
+        }
+        (last.1, DVec3::ZERO)
+    }
 }
 
 /// What makes a ball dynamic.
@@ -77,18 +136,33 @@ impl Collider {
         if self.dynamics.is_some() {
             return *self;
         }
-        let offset = self.velocity * t;
+        let (place, velocity) = match self.path {
+            Some(path) => path.sample(t),
+            None => (self.anchor() + self.velocity * t, self.velocity),
+        };
         let shape = match self.shape {
-            Shape::Sphere { center, radius } => Shape::Sphere {
-                center: center + offset,
+            Shape::Sphere { radius, .. } => Shape::Sphere {
+                center: place,
                 radius,
             },
-            Shape::Plane { point, normal } => Shape::Plane {
-                point: point + offset,
+            Shape::Plane { normal, .. } => Shape::Plane {
+                point: place,
                 normal,
             },
         };
-        Self { shape, ..*self }
+        Self {
+            shape,
+            velocity,
+            ..*self
+        }
+    }
+
+    /// The centre of a sphere, the point of a plane.
+    pub fn anchor(&self) -> DVec3 {
+        match self.shape {
+            Shape::Sphere { center, .. } => center,
+            Shape::Plane { point, .. } => point,
+        }
     }
 
     /// Outward normal and depth of `p` inside the collider grown by `thickness`, if inside.
@@ -133,7 +207,8 @@ pub fn resolve_and_report(
 ) -> DVec3 {
     let mut p = next;
     for (k, collider) in colliders.iter().enumerate() {
-        if let Some((normal, depth)) = collider.at(t).penetration(p, thickness) {
+        let collider = collider.at(t);
+        if let Some((normal, depth)) = collider.penetration(p, thickness) {
             let before = p;
             p += normal * depth;
             let step = p - current - collider.velocity * dt;
@@ -237,7 +312,8 @@ fn meet(ball: &mut Collider, dynamics: Dynamics, obstacle: &mut Collider, t: f64
     let Shape::Sphere { center, radius } = ball.shape else {
         return;
     };
-    let (normal, depth) = match obstacle.at(t).shape {
+    let placed = obstacle.at(t);
+    let (normal, depth) = match placed.shape {
         Shape::Plane { point, normal } => (normal, radius - (center - point).dot(normal)),
         Shape::Sphere {
             center: other,
@@ -256,7 +332,7 @@ fn meet(ball: &mut Collider, dynamics: Dynamics, obstacle: &mut Collider, t: f64
         Some(other) => other.mass / (dynamics.mass + other.mass),
         None => 1.0,
     };
-    let relative = ball.velocity - obstacle.velocity;
+    let relative = ball.velocity - placed.velocity;
     let approach = relative.dot(normal);
     let bounce = if approach < 0.0 {
         -(1.0 + dynamics.restitution) * approach
@@ -304,6 +380,7 @@ mod tests {
             velocity: DVec3::ZERO,
             dynamics: None,
             spin: DVec3::ZERO,
+            path: None,
         };
         let p = resolve(
             &[sphere],
@@ -327,6 +404,7 @@ mod tests {
             velocity: DVec3::X,
             dynamics: None,
             spin: DVec3::ZERO,
+            path: None,
         };
         // At t = 2 the ball is centred at x = 2: a point at x = 2.2 is inside and pushed out.
         let p = resolve(
@@ -360,6 +438,7 @@ mod tests {
             velocity: DVec3::ZERO,
             dynamics: None,
             spin: DVec3::ZERO,
+            path: None,
         };
         let (from, to) = (DVec3::new(0.0, 0.01, 0.0), DVec3::new(0.5, -0.1, 0.0));
         let slippery = resolve(&[plane(0.0)], 0.0, 1.0, 0.01, from, to);
@@ -384,6 +463,7 @@ mod tests {
             velocity: DVec3::ZERO,
             dynamics: None,
             spin: DVec3::ZERO,
+            path: None,
         };
         let (mass, radius, force) = (2.0, 0.1, 3.0);
         let ball = Collider {
@@ -399,6 +479,7 @@ mod tests {
                 restitution: 0.0,
             }),
             spin: DVec3::ZERO,
+            path: None,
         };
         let mut colliders = [ground, ball];
         let (dt, steps) = (1e-3, 1000);
@@ -435,5 +516,26 @@ mod tests {
             );
         }
         assert!((colliders[1].velocity.x - force / mass * t).abs() < 1e-2 * force / mass * t);
+    }
+
+    #[test]
+    fn a_path_moves_through_its_keyframes_and_repeats() {
+        let keys = [
+            (1.0, DVec3::ZERO),
+            (2.0, DVec3::new(2.0, 0.0, 0.0)),
+            (4.0, DVec3::new(2.0, 4.0, 0.0)),
+        ];
+        let path = KeyframePath::new(&keys, false).expect("valid");
+        assert_eq!(path.sample(0.0), (DVec3::ZERO, DVec3::ZERO));
+        assert_eq!(path.sample(1.5), (DVec3::X, DVec3::new(2.0, 0.0, 0.0)));
+        assert_eq!(
+            path.sample(3.0),
+            (DVec3::new(2.0, 2.0, 0.0), DVec3::new(0.0, 2.0, 0.0))
+        );
+        assert_eq!(path.sample(9.0), (keys[2].1, DVec3::ZERO));
+        let looping = KeyframePath::new(&keys, true).expect("valid");
+        assert_eq!(looping.sample(4.5).0, looping.sample(1.5).0);
+        assert!(KeyframePath::new(&keys[..1], false).is_none());
+        assert!(KeyframePath::new(&[keys[1], keys[0]], false).is_none());
     }
 }

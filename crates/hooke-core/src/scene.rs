@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::collide::{Collider, Dynamics, Shape};
+use crate::collide::{Collider, Dynamics, KeyframePath, MAX_KEYFRAMES, Shape};
 use crate::mesh::{self, GridPlane, Mesh, MeshWarning};
 use crate::selfcollide::{self, SelfCollision};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
@@ -109,6 +109,13 @@ pub struct ColliderSection {
     /// A dynamic ball's bounce off planes and spheres, 0..=1 (default 0.3).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub restitution: Option<f64>,
+    /// A scripted path: keyframes `[t, x, y, z]` of the centre or point, 2 to 8, times
+    /// increasing; straight lines between them. `center`/`point` default to the first.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<Vec<[f64; 4]>>,
+    /// Start the path over after its last keyframe.
+    #[serde(default)]
+    pub repeat: bool,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -770,6 +777,12 @@ impl SceneFile {
                     format!("must be 0..=1, found {}", c.friction),
                 )
             })?;
+            // A scripted path starts where its first keyframe is.
+            let start = c
+                .path
+                .as_ref()
+                .and_then(|keys| keys.first())
+                .map(|[_, x, y, z]| [*x, *y, *z]);
             let shape = match c.kind {
                 ColliderKind::Sphere => {
                     let radius = c.radius.unwrap_or(f64::NAN);
@@ -780,7 +793,7 @@ impl SceneFile {
                         )
                     })?;
                     Shape::Sphere {
-                        center: need("center", c.center)?,
+                        center: need("center", c.center.or(start))?,
                         radius,
                     }
                 }
@@ -790,9 +803,41 @@ impl SceneFile {
                         .try_normalize()
                         .ok_or_else(|| invalid(&field("normal"), "must not be zero".into()))?;
                     Shape::Plane {
-                        point: need("point", c.point)?,
+                        point: need("point", c.point.or(start))?,
                         normal,
                     }
+                }
+            };
+            let path = match &c.path {
+                None => None,
+                Some(keys) => {
+                    for (name, set) in [
+                        ("velocity", c.velocity.is_some()),
+                        ("mass", c.mass.is_some()),
+                    ] {
+                        require(!set, || {
+                            invalid(
+                                &field(name),
+                                "a collider with a path cannot have one".into(),
+                            )
+                        })?;
+                    }
+                    require(keys.iter().flatten().all(|x| x.is_finite()), || {
+                        invalid(&field("path"), "keyframes must be finite".into())
+                    })?;
+                    let keys: Vec<(f64, DVec3)> = keys
+                        .iter()
+                        .map(|[t, x, y, z]| (*t, DVec3::new(*x, *y, *z)))
+                        .collect();
+                    Some(KeyframePath::new(&keys, c.repeat).ok_or_else(|| {
+                        invalid(
+                            &field("path"),
+                            format!(
+                                "needs 2 to {MAX_KEYFRAMES} keyframes [t, x, y, z] with increasing t, found {}",
+                                keys.len()
+                            ),
+                        )
+                    })?)
                 }
             };
             let velocity = match c.velocity {
@@ -849,6 +894,7 @@ impl SceneFile {
                 velocity,
                 dynamics,
                 spin: DVec3::ZERO,
+                path,
             });
         }
         let collision_thickness = self.collision.as_ref().map_or(0.0, |c| c.thickness);
@@ -1115,6 +1161,26 @@ select = ["corners"]
         );
         let off = text.replace("grids = 3", "grids = 3\nenabled = false");
         assert!(build(&off).expect("builds").params.self_collision.is_none());
+        // A keyframed path: the sphere starts at the first keyframe.
+        let path = format!(
+            "{CLOTH}\n[[collider]]\nkind = \"sphere\"\nradius = 0.1\npath = [[0, 1, 2, 3], [1, 1, 2, 4]]\nrepeat = true\n"
+        );
+        let scene = build(&path).expect("builds");
+        let collider = scene.params.colliders[0];
+        assert!(collider.path.is_some_and(|p| p.repeat));
+        assert_eq!(collider.anchor(), DVec3::new(1.0, 2.0, 3.0));
+        let backwards = path.replace("[1, 1, 2, 4]", "[0, 1, 2, 4]");
+        let error = build(&backwards).unwrap_err().to_string();
+        assert!(
+            error.contains("collider[0].path: needs 2 to 8 keyframes"),
+            "{error}"
+        );
+        let both = path.replace("repeat = true", "velocity = [1, 0, 0]");
+        let error = build(&both).unwrap_err().to_string();
+        assert!(
+            error.contains("collider[0].velocity: a collider with a path"),
+            "{error}"
+        );
     }
 
     #[test]

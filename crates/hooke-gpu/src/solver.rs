@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use hooke_core::collide::{Collider, Shape};
+use hooke_core::collide::{Collider, MAX_KEYFRAMES, Shape};
 use hooke_core::{Model, PhaseTimes, SimError, SimParams, Solver, State};
 
 use crate::context::{GpuContext, GpuError};
@@ -215,6 +215,7 @@ struct CollidePass {
     /// By current position buffer.
     groups: [wgpu::BindGroup; 2],
     colliders: wgpu::Buffer,
+    keyframes: wgpu::Buffer,
     balls: Option<BallsPass>,
 }
 
@@ -287,6 +288,8 @@ pub struct GpuSolver {
     collide: Option<CollidePass>,
     /// The colliders' settings as last given (dynamic balls' places live on the GPU).
     collider_settings: Vec<Collider>,
+    /// The time step, s.
+    dt: f64,
     self_collide: Option<SelfCollidePass>,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     steps_taken: u64,
@@ -425,6 +428,7 @@ impl GpuSolver {
             external: None,
             collide: None,
             collider_settings: Vec::new(),
+            dt: params.dt,
             self_collide: None,
             timestamps,
             steps_taken: 0,
@@ -979,16 +983,20 @@ fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
         .iter()
         .flat_map(|c| {
             let v = c.velocity.as_vec3();
-            let (inverse_mass, force, restitution) = match c.dynamics {
-                Some(d) => (
-                    (1.0 / d.mass) as f32,
-                    d.force.as_vec3(),
-                    d.restitution as f32,
-                ),
-                None => (0.0, glam::Vec3::ZERO, 0.0),
+            // Entry 3: a dynamic ball's force and restitution, or a script's repeat flag and
+            // keyframe count.
+            let (inverse_mass, script) = match (c.dynamics, c.path) {
+                (Some(d), _) => {
+                    let f = d.force.as_vec3();
+                    ((1.0 / d.mass) as f32, [f.x, f.y, f.z, d.restitution as f32])
+                }
+                (None, Some(path)) => {
+                    let repeat = if path.repeat { 1.0 } else { 0.0 };
+                    (0.0, [0.0, 0.0, repeat, path.keyframes().len() as f32])
+                }
+                (None, None) => (0.0, [0.0; 4]),
             };
             let motion = [v.x, v.y, v.z, inverse_mass];
-            let applied = [force.x, force.y, force.z, restitution];
             let friction = c.friction as f32;
             let (place, surface) = match c.shape {
                 Shape::Sphere { center, radius } => {
@@ -1000,7 +1008,24 @@ fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
                     ([p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction])
                 }
             };
-            [place, surface, motion, applied]
+            [place, surface, motion, script]
+        })
+        .collect()
+}
+
+/// `MAX_KEYFRAMES` slots `(t, x, y, z)` per collider for paths.wgsl.
+fn keyframe_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
+    colliders
+        .iter()
+        .flat_map(|c| {
+            let mut slots = [[0.0f32; 4]; MAX_KEYFRAMES];
+            if let Some(path) = c.path {
+                for (slot, (t, p)) in slots.iter_mut().zip(path.keyframes()) {
+                    let p = p.as_vec3();
+                    *slot = [*t as f32, p.x, p.y, p.z];
+                }
+            }
+            slots
         })
         .collect()
 }
@@ -1602,6 +1627,11 @@ impl GpuSolver {
                         .write_buffer(&pass.colliders, base, bytemuck::cast_slice(entry));
                 }
             }
+            ctx.queue.write_buffer(
+                &pass.keyframes,
+                0,
+                bytemuck::cast_slice(&keyframe_entries(&params.colliders)),
+            );
             self.collider_settings = params.colliders.clone();
             return Ok(());
         }
@@ -1615,6 +1645,12 @@ impl GpuSolver {
             "colliders",
             &entries,
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        );
+        let keyframes = storage(
+            ctx,
+            "collider keyframes",
+            &keyframe_entries(&params.colliders),
+            wgpu::BufferUsages::COPY_DST,
         );
         let dynamic = hooke_core::collide::any_dynamic(&params.colliders);
         let reactions = if dynamic {
@@ -1650,6 +1686,7 @@ impl GpuSolver {
                     (5, colliders.as_entire_binding()),
                     (6, self.status.as_entire_binding()),
                     (7, reactions.as_entire_binding()),
+                    (12, keyframes.as_entire_binding()),
                 ],
             )
         });
@@ -1674,6 +1711,7 @@ impl GpuSolver {
                     (0, self.uniform_buffer.as_entire_binding()),
                     (1, colliders.as_entire_binding()),
                     (3, self.status.as_entire_binding()),
+                    (12, keyframes.as_entire_binding()),
                 ],
             );
             Some(BallsPass {
@@ -1689,6 +1727,7 @@ impl GpuSolver {
             pipeline,
             groups,
             colliders,
+            keyframes,
             balls,
         });
         Ok(())
@@ -1743,6 +1782,7 @@ impl GpuSolver {
         let g = (params.gravity * dt * dt).as_vec3();
         self.uniforms.gravity_step = [g.x, g.y, g.z, 0.0];
         self.uniforms.inverse_dt = (1.0 / dt) as f32;
+        self.dt = dt;
         self.uniforms.triangle_count = 0;
         self.external = self.build_external(params)?;
         self.uniforms.has_extra = u32::from(self.external.is_some());
@@ -1861,7 +1901,7 @@ impl Solver for GpuSolver {
     }
 
     fn colliders(&self) -> Vec<Collider> {
-        let t = self.steps_taken as f64 * f64::from(1.0 / self.uniforms.inverse_dt);
+        let t = self.steps_taken as f64 * self.dt;
         let mut placed = hooke_core::collide::placed(&self.collider_settings, t);
         let Some(pass) = &self.collide else {
             return placed;

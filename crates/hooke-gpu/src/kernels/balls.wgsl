@@ -49,11 +49,13 @@ fn advance(
 // The status buffer, for the step counter that places scripted colliders.
 @group(0) @binding(3) var<storage, read> status_words: array<u32, 4>;
 
-// Collider `c` placed at time `t` (a dynamic ball where it is).
-fn place(c: u32, t: f32) -> vec4<f32> {
+// Collider `c` at time `t` (a dynamic ball where it is): place (xyz, radius or -1) and velocity.
+fn place(c: u32, t: f32) -> Placement {
     let motion = colliders[4u * c + 2u];
-    let scripted = select(t, 0.0, motion.w > 0.0);
-    return vec4<f32>(colliders[4u * c].xyz + motion.xyz * scripted, colliders[4u * c].w);
+    if motion.w > 0.0 {
+        return Placement(colliders[4u * c].xyz, motion.xyz);
+    }
+    return scripted_placement(c, colliders[4u * c].xyz, motion.xyz, colliders[4u * c + 3u], t);
 }
 
 @compute @workgroup_size(1)
@@ -70,7 +72,8 @@ fn contacts() {
                 continue;
             }
             let ball = colliders[4u * k];
-            let other = place(o, t);
+            let placed = place(o, t);
+            let other = vec4<f32>(placed.position, colliders[4u * o].w);
             var normal: vec3<f32>;
             var depth: f32;
             if other.w < 0.0 {
@@ -91,7 +94,7 @@ fn contacts() {
             if other_inverse_mass > 0.0 {
                 share = inverse_mass / (inverse_mass + other_inverse_mass);
             }
-            let relative = colliders[4u * k + 2u].xyz - colliders[4u * o + 2u].xyz;
+            let relative = colliders[4u * k + 2u].xyz - placed.velocity;
             let approach = dot(relative, normal);
             var bounce = 0.0;
             if approach < 0.0 {

@@ -9,8 +9,8 @@
 @group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
 // Four entries per collider: (centre or point xyz, radius; < 0 for a plane), (a plane's
 // normal or a ball's spin xyz, friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
-// restitution). A scripted collider's first entry is its place at time 0; a dynamic ball's is
-// where it is now (balls.wgsl moves it).
+// restitution; for a scripted collider: 0, 0, repeat, keyframes). A scripted collider's first
+// entry is its place at time 0; a dynamic ball's is where it is now (balls.wgsl moves it).
 @group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;
 // The status buffer, read only here for its step counter (the fourth word).
 @group(0) @binding(6) var<storage, read> status_words: array<u32, 4>;
@@ -31,9 +31,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     let t = f32(status_words[3] + 1u) * dt;
     for (var c = 0u; c < u.collider_count; c++) {
         let motion = colliders[4u * c + 2u];
-        let velocity = motion.xyz;
-        let scripted = select(t, 0.0, motion.w > 0.0);
-        let shape = vec4<f32>(colliders[4u * c].xyz + velocity * scripted, colliders[4u * c].w);
+        var velocity = motion.xyz;
+        var shape = colliders[4u * c];
+        if motion.w <= 0.0 {
+            let placed = scripted_placement(c, shape.xyz, velocity, colliders[4u * c + 3u], t);
+            shape = vec4<f32>(placed.position, shape.w);
+            velocity = placed.velocity;
+        }
         let surface = colliders[4u * c + 1u];
         var normal = surface.xyz;
         var depth: f32;

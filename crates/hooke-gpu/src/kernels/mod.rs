@@ -1,9 +1,18 @@
 //! The WGSL kernels. Each source is `common.wgsl` followed by the kernel's own file.
 
-/// A kernel's full source with the shared prelude.
+/// A kernel's full source with the shared prelude (and `paths.wgsl` for collider kernels).
 macro_rules! kernel_source {
     ($file:literal) => {
         concat!(include_str!("common.wgsl"), "\n", include_str!($file))
+    };
+    (with paths $file:literal) => {
+        concat!(
+            include_str!("common.wgsl"),
+            "\n",
+            include_str!("paths.wgsl"),
+            "\n",
+            include_str!($file)
+        )
     };
 }
 
@@ -18,8 +27,8 @@ pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
 pub const INTEGRATE: &str = kernel_source!("integrate.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
-pub const COLLIDE: &str = kernel_source!("collide.wgsl");
-pub const BALLS: &str = kernel_source!("balls.wgsl");
+pub const COLLIDE: &str = kernel_source!(with paths "collide.wgsl");
+pub const BALLS: &str = kernel_source!(with paths "balls.wgsl");
 pub const RADIX_SORT: &str = kernel_source!("radix_sort.wgsl");
 pub const SELF_COLLIDE: &str = kernel_source!("self_collide.wgsl");
 
