@@ -3,7 +3,7 @@
 //!
 //! One pass per grid: every vertex gets the key of the grid cell holding it, a stable sort by
 //! key puts vertices of the same cell next to each other, and each vertex is tested against the
-//! `window` vertices on either side of it in sorted order. A pair closer than `distance` that no
+//! vertices of its cell next to it in sorted order, at most `window` on either side. A pair closer than `distance` that no
 //! spring joins is pushed apart to `distance`, each end by its share of the inverse masses (a
 //! pinned end does not move), in the Verlet scheme's way: the new position moves and the
 //! step's motion with it, so the pair stops approaching rather than bouncing.
@@ -81,7 +81,19 @@ pub fn key_bits(vertices: usize) -> u32 {
 
 /// The cell of `p` in a grid of cells `1 / inverse_cell` wide shifted by `offset` cells.
 pub fn cell_of(p: Vec3, inverse_cell: f32, offset: f32) -> IVec3 {
-    (p * inverse_cell + Vec3::splat(offset)).floor().as_ivec3()
+    let x = p * inverse_cell + Vec3::splat(offset);
+    IVec3::new(floor(x.x), floor(x.y), floor(x.z))
+}
+
+/// `x.floor() as i32` without a libm call (the baseline x86-64 target has no rounding
+/// instruction), exact for |x| < 2^31.
+fn floor(x: f32) -> i32 {
+    let truncated = x as i32;
+    if truncated as f32 > x {
+        truncated - 1
+    } else {
+        truncated
+    }
 }
 
 /// The sort key of `cell`: its coordinates hashed into `bits` bits.
@@ -120,20 +132,26 @@ pub fn joined(adjacency: &Adjacency, a: u32, b: u32) -> bool {
 }
 
 /// The vertices of one grid in sorted order.
-fn sorted_for_grid(positions: &[Vec3], config: &SelfCollision, k: u32) -> Vec<u32> {
+/// The sorted keys and the vertices in sorted order of grid `k`.
+fn sorted_for_grid(positions: &[Vec3], config: &SelfCollision, k: u32) -> (Vec<u32>, Vec<u32>) {
     let inverse_cell = (1.0 / config.cell_size) as f32;
     let (offset, bits) = (config.grid_offset(k), key_bits(positions.len()));
     let keys: Vec<u32> = positions
         .par_iter()
         .map(|&p| cell_key(cell_of(p, inverse_cell, offset), bits))
         .collect();
-    sort_by_key(&keys).1
+    sort_by_key(&keys)
 }
 
-/// The window of sorted slot `j`: slots within `window` of it, itself excluded.
-fn window_of(j: usize, window: u32, len: usize) -> impl Iterator<Item = usize> {
-    let w = window as usize;
-    (j.saturating_sub(w)..(j + w + 1).min(len)).filter(move |&m| m != j)
+/// The window of sorted slot `j`: up to `window` slots on each side, nearest first, that
+/// hold the same key (the same cell, or one hashed alike); below `j`, then above.
+fn window_of(j: usize, window: u32, keys: &[u32]) -> impl Iterator<Item = usize> + '_ {
+    let (w, key) = (window as usize, keys[j]);
+    let below = (j.saturating_sub(w)..j)
+        .rev()
+        .take_while(move |&m| keys[m] == key);
+    let above = (j + 1..(j + w + 1).min(keys.len())).take_while(move |&m| keys[m] == key);
+    below.chain(above)
 }
 
 /// Resolves self-collisions in place: `K` passes, each moving `positions` (and `deltas`, the
@@ -148,7 +166,7 @@ pub fn resolve(
 ) {
     let distance = config.distance as f32;
     for k in 0..config.grids {
-        let order = sorted_for_grid(positions, config, k);
+        let (keys, order) = sorted_for_grid(positions, config, k);
         // Window members are read from copies in sorted order: contiguous, not scattered.
         let sorted: Vec<(Vec3, f32)> = order
             .par_iter()
@@ -160,7 +178,7 @@ pub fn resolve(
                 let (xp, wp) = sorted[j];
                 let mut correction = Vec3::ZERO;
                 if wp > 0.0 {
-                    for m in window_of(j, config.window, order.len()) {
+                    for m in window_of(j, config.window, &keys) {
                         let (xq, wq) = sorted[m];
                         let pair = Pair {
                             p: order[j],
@@ -219,10 +237,10 @@ pub fn approximate_pairs(
     let distance = config.distance as f32;
     let mut pairs: Vec<(u32, u32)> = (0..config.grids)
         .flat_map(|k| {
-            let order = sorted_for_grid(positions, config, k);
+            let (keys, order) = sorted_for_grid(positions, config, k);
             let mut found = Vec::new();
             for (j, &p) in order.iter().enumerate() {
-                for m in window_of(j, config.window, order.len()) {
+                for m in window_of(j, config.window, &keys) {
                     let q = order[m];
                     if p < q && close_and_unjoined(positions, adjacency, distance, p, q) {
                         found.push((p, q));

@@ -119,6 +119,7 @@ impl SelfCollidePass {
                 &[
                     (0, uniforms[0].as_entire_binding()),
                     (1, target(current).as_entire_binding()),
+                    (2, sort.keys().as_entire_binding()),
                     (3, sort.values().as_entire_binding()),
                     (4, buffers.scales.as_entire_binding()),
                     (5, offsets.as_entire_binding()),

@@ -1,7 +1,7 @@
 // Approximate self-collision by binning (hooke_core::selfcollide, the same arithmetic): per
 // grid, `cell_keys` hashes each vertex's cell, the radix sort orders vertices by key,
-// `correct` tests each vertex against its window of sorted neighbours and finds how far it
-// must move, and `apply` moves it (position and the step's motion). Runs after `collide`.
+// `correct` tests each vertex against the same-cell vertices next to it in sorted order (at
+// most `window` each side) and finds how far it must move, and `apply` moves it (position and the step's motion). Runs after `collide`.
 
 // Mirrors `SelfUniforms` in self_collide.rs.
 struct SelfUniforms {
@@ -72,30 +72,39 @@ fn correct(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if wp > 0.0 {
         let xp = positions[p].xyz;
         let d2 = cu.distance * cu.distance;
-        let low = select(0u, j - cu.window, j >= cu.window);
-        let high = min(j + cu.window + 1u, n);
-        for (var m = low; m < high; m++) {
-            if m == j {
-                continue;
+        let key = keys[j];
+        // The window: same-key slots, nearest first, below j and then above (as on the CPU).
+        for (var m = j; m > 0u && j - m < cu.window; m--) {
+            if keys[m - 1u] != key {
+                break;
             }
-            let q = sorted[m];
-            let d = xp - positions[q].xyz;
-            let l2 = dot(d, d);
-            if l2 >= d2 || joined(p, q) {
-                continue;
+            correction += push(p, sorted[m - 1u], xp, wp, d2);
+        }
+        for (var m = j + 1u; m < n && m - j <= cu.window; m++) {
+            if keys[m] != key {
+                break;
             }
-            let share = wp / (wp + scales[q].x);
-            if l2 == 0.0 {
-                // Coincident: part them vertically, the lower index going up.
-                let sign = select(-1.0, 1.0, p < q);
-                correction += vec3<f32>(0.0, sign * share * cu.distance, 0.0);
-            } else {
-                let l = sqrt(l2);
-                correction += d * (share * (cu.distance - l) / l);
-            }
+            correction += push(p, sorted[m], xp, wp, d2);
         }
     }
     corrections[p] = vec4<f32>(correction, 0.0);
+}
+
+// How far `p` (at `xp`, weight `wp`) moves away from `q`: zero unless unjoined and too close.
+fn push(p: u32, q: u32, xp: vec3<f32>, wp: f32, d2: f32) -> vec3<f32> {
+    let d = xp - positions[q].xyz;
+    let l2 = dot(d, d);
+    if l2 >= d2 || joined(p, q) {
+        return vec3<f32>(0.0);
+    }
+    let share = wp / (wp + scales[q].x);
+    if l2 == 0.0 {
+        // Coincident: part them vertically, the lower index going up.
+        let sign = select(-1.0, 1.0, p < q);
+        return vec3<f32>(0.0, sign * share * cu.distance, 0.0);
+    }
+    let l = sqrt(l2);
+    return d * (share * (cu.distance - l) / l);
 }
 
 @compute @workgroup_size(64)
