@@ -596,41 +596,13 @@ fn selfcollision_study_prints_missed_pairs_and_cost() {
     let scene = write(
         dir.path(),
         "fold.toml",
-        r#"
-[mesh]
-generator = "grid"
-resolution = [16, 16]
-size = [0.5, 0.5]
-plane = "xy"
-center = [0.0, 0.27, 0.0]
-
-[material]
-mass = { total = 0.03 }
-stiffness = 30.0
-
-[wind]
-velocity = [0.0, 0.0, 0.6]
-coefficient = 0.3
-
-[collision]
-thickness = 0.004
-
-[[collider]]
-kind = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-friction = 0.6
-
-[self_collision]
-distance = 0.016
-
-[simulation]
-steps = 3000
-"#,
+        hooke_core::test_scenes::FOLDING_CLOTH,
     );
     let result = hooke(&[
         "selfcollision-study",
         path_str(&scene),
+        "--steps",
+        "3000",
         "--grids",
         "1,4",
         "--cell-sizes",

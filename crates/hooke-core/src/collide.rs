@@ -130,6 +130,18 @@ impl Shape {
 }
 
 impl Collider {
+    /// A collider that stays where it is.
+    pub fn fixed(shape: Shape, friction: f64) -> Self {
+        Self {
+            shape,
+            friction,
+            velocity: DVec3::ZERO,
+            dynamics: None,
+            spin: DVec3::ZERO,
+            path: None,
+        }
+    }
+
     /// The collider moved to where its script puts it at time `t` (a dynamic ball is where
     /// its state says, whatever `t`).
     pub fn at(&self, t: f64) -> Self {
@@ -454,17 +466,13 @@ mod tests {
 
     #[test]
     fn a_pushed_ball_on_the_ground_rolls_at_five_sevenths_of_the_push() {
-        let ground = Collider {
-            shape: Shape::Plane {
+        let ground = Collider::fixed(
+            Shape::Plane {
                 point: DVec3::ZERO,
                 normal: DVec3::Y,
             },
-            friction: 0.5,
-            velocity: DVec3::ZERO,
-            dynamics: None,
-            spin: DVec3::ZERO,
-            path: None,
-        };
+            0.5,
+        );
         let (mass, radius, force) = (2.0, 0.1, 3.0);
         let ball = Collider {
             shape: Shape::Sphere {
@@ -483,16 +491,19 @@ mod tests {
         };
         let mut colliders = [ground, ball];
         let (dt, steps) = (1e-3, 1000);
-        let gravity = DVec3::new(0.0, -9.81, 0.0);
-        for k in 1..=steps {
-            advance_balls(
-                &mut colliders,
-                &[DVec3::ZERO; 2],
-                gravity,
-                dt,
-                k as f64 * dt,
-            );
-        }
+        let run = |colliders: &mut [Collider; 2]| {
+            for k in 1..=steps {
+                let t = k as f64 * dt;
+                advance_balls(
+                    colliders,
+                    &[DVec3::ZERO; 2],
+                    DVec3::new(0.0, -9.81, 0.0),
+                    dt,
+                    t,
+                );
+            }
+        };
+        run(&mut colliders);
         // Rolling without slipping: a = F / (m (1 + 2/5)); spin = v / r about -z.
         let t = steps as f64 * dt;
         let expected = 5.0 / 7.0 * force / mass * t;
@@ -506,15 +517,7 @@ mod tests {
         // Without friction it slides at the full F / m.
         colliders[0].friction = 0.0;
         colliders[1].velocity = DVec3::ZERO;
-        for k in 1..=steps {
-            advance_balls(
-                &mut colliders,
-                &[DVec3::ZERO; 2],
-                gravity,
-                dt,
-                k as f64 * dt,
-            );
-        }
+        run(&mut colliders);
         assert!((colliders[1].velocity.x - force / mass * t).abs() < 1e-2 * force / mass * t);
     }
 

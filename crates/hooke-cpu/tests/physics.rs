@@ -3,8 +3,8 @@
 use std::path::Path;
 
 use glam::DVec3;
+use hooke_core::diagnostics::energy;
 use hooke_core::diagnostics::relative_l2;
-use hooke_core::diagnostics::{energy, pin_reactions};
 use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{
@@ -246,19 +246,7 @@ fn hanging_cloth_pin_reactions_balance_its_weight() {
             "{}: not settled, max speed {speed}",
             solver.describe()
         );
-        // Averaged over time, as a force sensor would: an f32 cloth's rounding limit cycle makes
-        // the instantaneous sum wobble by the momentum it exchanges, which averages to zero.
-        let window = 2000;
-        let mut total = DVec3::ZERO;
-        for _ in 0..window {
-            solver.step(1).expect("stable");
-            let positions = solver.read_state().positions;
-            total += pin_reactions(&scene.model, &positions, &scene.params)
-                .iter()
-                .map(|(_, r)| *r)
-                .sum::<DVec3>();
-        }
-        total /= f64::from(window);
+        let total = hooke_core::test_scenes::mean_pin_reaction(solver.as_mut(), &scene, 2000);
         assert!(
             (total + weight).length() < 1e-3 * weight.length(),
             "{}: reactions {total} vs weight {weight}",

@@ -498,17 +498,13 @@ fn a_pushed_ball_rolls_on_the_gpu_as_on_the_reference() {
         radius: 0.15,
     };
     ball.dynamics.as_mut().expect("dynamic").force = DVec3::new(1.0, 0.0, 0.0);
-    scene.params.colliders.push(Collider {
-        shape: Shape::Plane {
+    scene.params.colliders.push(Collider::fixed(
+        Shape::Plane {
             point: DVec3::ZERO,
             normal: DVec3::Y,
         },
-        friction: 0.5,
-        velocity: DVec3::ZERO,
-        dynamics: None,
-        spin: DVec3::ZERO,
-        path: None,
-    });
+        0.5,
+    ));
     let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
     let mut gpu =
         GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");

@@ -157,8 +157,14 @@ fn vs_wind(@builtin(vertex_index) index: u32, @builtin(instance_index) arrow: u3
     let up = normalize(cross(side, direction));
     let cell = vec2<f32>(f32(arrow % 4u), f32(arrow / 4u)) - 1.5;
     let start = frame.wind_origin.xyz + (side * cell.x + up * cell.y) * frame.wind_origin.w;
-    let tip = start + direction * frame.wind.w;
-    let head = frame.wind.w * 0.3;
+    return arrow_line(index, start, direction, side, frame.wind.w, vec3<f32>(0.15, 0.35, 0.80));
+}
+
+// Corner `index` (0..6) of an arrow drawn as a line list: a shaft of `length` along the unit
+// `direction` from `start`, and two head strokes spread along `side`.
+fn arrow_line(index: u32, start: vec3<f32>, direction: vec3<f32>, side: vec3<f32>, length: f32, color: vec3<f32>) -> LineOut {
+    let tip = start + direction * length;
+    let head = length * 0.3;
     let points = array<vec3<f32>, 6>(
         start, tip,
         tip, tip - direction * head + side * head * 0.5,
@@ -166,7 +172,7 @@ fn vs_wind(@builtin(vertex_index) index: u32, @builtin(instance_index) arrow: u3
     );
     var out: LineOut;
     out.clip = frame.view_projection * vec4<f32>(points[index], 1.0);
-    out.color = vec3<f32>(0.15, 0.35, 0.80);
+    out.color = color;
     return out;
 }
 
@@ -217,15 +223,5 @@ fn vs_ball_force(@builtin(vertex_index) index: u32, @builtin(instance_index) sph
     let direction = force.xyz;
     let side = normalize(cross(direction, vec3<f32>(0.0, 1.0, 0.0)) + vec3<f32>(1e-6, 0.0, 1e-6));
     let start = s.xyz + direction * s.w * 1.05;
-    let tip = start + direction * force.w;
-    let head = force.w * 0.3;
-    let points = array<vec3<f32>, 6>(
-        start, tip,
-        tip, tip - direction * head + side * head * 0.5,
-        tip, tip - direction * head - side * head * 0.5,
-    );
-    var out: LineOut;
-    out.clip = frame.view_projection * vec4<f32>(points[index], 1.0);
-    out.color = vec3<f32>(0.85, 0.35, 0.10);
-    return out;
+    return arrow_line(index, start, direction, side, force.w, vec3<f32>(0.85, 0.35, 0.10));
 }
