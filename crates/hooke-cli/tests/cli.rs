@@ -561,6 +561,12 @@ fn paper_fig3_and_fig4_scenes_run_and_render() {
         ]);
         assert!(result.status.success(), "{name}: {}", text(&result.stderr));
         let stdout = text(&result.stdout);
+        let info = text(&hooke(&["info", path_str(&scene)]).stdout);
+        let expected = match name {
+            "self-collision.toml" => "self-collision  distance 0.008 m, cells 0.016 m, K = 4",
+            _ => "sphere r = 0.2 m at [0.05, 1.9, 0.05]; dynamic ball 0.6 kg",
+        };
+        assert!(info.contains(expected), "{info}");
         if name == "wind-and-balls.toml" {
             // Three dynamic balls, reported where they ended.
             assert_eq!(

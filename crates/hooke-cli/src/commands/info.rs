@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use comfy_table::Table;
+use hooke_core::collide::{Collider, Shape};
 use hooke_core::stability::stability_limit;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
@@ -78,6 +79,34 @@ struct Info {
     /// GPU buffers each method allocates on the adapter in use (empty without a GPU).
     gpu_adapter: Option<String>,
     gpu_memory: Vec<GpuMethodMemory>,
+    /// One line per collider: its kind, motion and place.
+    colliders: Vec<String>,
+    /// The self-collision setting, if on.
+    self_collision: Option<String>,
+}
+
+/// A collider in a few words.
+fn describe_collider(collider: &Collider) -> String {
+    let shape = match collider.shape {
+        Shape::Sphere { center, radius } => format!("sphere r = {radius} m at {center}"),
+        Shape::Plane { point, normal } => format!("plane through {point}, normal {normal}"),
+    };
+    let motion = match (collider.dynamics, collider.path) {
+        (Some(d), _) => format!(
+            "dynamic ball {} kg, force {} N, restitution {}",
+            d.mass, d.force, d.restitution
+        ),
+        (None, Some(path)) => format!(
+            "keyframed path, {} keyframes{}",
+            path.keyframes().len(),
+            if path.repeat { ", repeating" } else { "" }
+        ),
+        (None, None) if collider.velocity != glam::DVec3::ZERO => {
+            format!("moving at {} m/s", collider.velocity)
+        }
+        (None, None) => "static".to_owned(),
+    };
+    format!("{shape}; {motion}; friction {}", collider.friction)
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
@@ -136,6 +165,13 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         memory,
         gpu_adapter,
         gpu_memory,
+        colliders: scene.params.colliders.iter().map(describe_collider).collect(),
+        self_collision: scene.params.self_collision.map(|c| {
+            format!(
+                "distance {} m, cells {} m, K = {} grids (shifted k/K of a cell along (1,1,1)), window {}",
+                c.distance, c.cell_size, c.grids, c.window
+            )
+        }),
     };
     match args.format {
         OutputFormat::Json => println!("{}", serde_json::to_string_pretty(&info)?),
@@ -182,6 +218,12 @@ fn print_info(info: &Info) {
             ""
         }
     );
+    for (k, collider) in info.colliders.iter().enumerate() {
+        println!("collider {k}      {collider}");
+    }
+    if let Some(setting) = &info.self_collision {
+        println!("self-collision  {setting}");
+    }
     let mut memory = Table::new();
     memory.set_header(vec![
         "method",
