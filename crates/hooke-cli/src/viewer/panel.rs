@@ -228,3 +228,36 @@ impl PushDirection {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pushes_follow_the_view() {
+        let mut camera = Camera::framing(&SceneBounds {
+            min: glam::Vec3::splat(-1.0),
+            max: glam::Vec3::splat(1.0),
+            ground_height: 0.0,
+        });
+        // Yaw 0: the camera sits on +z looking toward -z, with +x to its right.
+        camera.yaw = 0.0;
+        let close = |a: glam::DVec3, b: glam::DVec3| (a - b).length() < 1e-12;
+        assert!(close(
+            PushDirection::Away.relative_to(&camera),
+            -glam::DVec3::Z
+        ));
+        assert!(close(
+            PushDirection::Right.relative_to(&camera),
+            glam::DVec3::X
+        ));
+        assert!(close(
+            PushDirection::Up.relative_to(&camera),
+            glam::DVec3::Y
+        ));
+        // A quarter turn: the camera on +x looking toward -x, with -z to its right.
+        camera.yaw = std::f32::consts::FRAC_PI_2;
+        assert!((PushDirection::Away.relative_to(&camera) + glam::DVec3::X).length() < 1e-6);
+        assert!((PushDirection::Right.relative_to(&camera) + glam::DVec3::Z).length() < 1e-6);
+    }
+}
