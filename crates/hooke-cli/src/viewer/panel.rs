@@ -143,7 +143,7 @@ pub fn show(
                 fps * f64::from(simulation.steps_per_frame)
             ));
             ui.label(format!("step {}", simulation.steps_taken()));
-            if ui.button("Measure GPU phases").clicked() {
+            if ui.button("Measure phases").clicked() {
                 simulation.measure_phases();
             }
             if let Some((p, source)) = simulation.phases {

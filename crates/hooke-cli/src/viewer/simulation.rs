@@ -376,12 +376,18 @@ impl Simulation {
     }
 
     /// Times one step's phases (waits for the GPU once; a user action, not part of the loop).
+    /// Times one step phase by phase (force, accumulation, integration, collision).
     pub fn measure_phases(&mut self) {
-        if let Active::Gpu(solver) = &mut self.active {
-            match solver.step_timed() {
-                Ok(times) => self.phases = Some(times),
-                Err(error) => self.message = Some(error.to_string()),
-            }
+        let measured = match &mut self.active {
+            Active::Gpu(solver) => solver.step_timed().map_err(|e| e.to_string()),
+            Active::Cpu(solver, _) => solver
+                .step_phased()
+                .map(|times| (times, TimingSource::WallClock))
+                .map_err(|e| e.to_string()),
+        };
+        match measured {
+            Ok(times) => self.phases = Some(times),
+            Err(error) => self.message = Some(error),
         }
     }
 }
