@@ -167,32 +167,34 @@ pub fn resolve(
     let distance = config.distance as f32;
     for k in 0..config.grids {
         let (keys, order) = sorted_for_grid(positions, config, k);
-        // Window members are read from copies in sorted order: contiguous, not scattered.
-        let sorted: Vec<(Vec3, f32)> = order
-            .par_iter()
-            .map(|&v| (positions[v as usize], weights[v as usize]))
-            .collect();
-        let corrections: Vec<Vec3> = (0..order.len())
+        let current = &*positions;
+        // Most vertices are alone in their cell: only those with a same-key neighbour in
+        // sorted order are looked at, and only nonzero moves are kept.
+        let moves: Vec<(u32, Vec3)> = (0..order.len())
             .into_par_iter()
-            .map(|j| {
-                let (xp, wp) = sorted[j];
-                let mut correction = Vec3::ZERO;
-                if wp > 0.0 {
-                    for m in window_of(j, config.window, &keys) {
-                        let (xq, wq) = sorted[m];
-                        let pair = Pair {
-                            p: order[j],
-                            q: order[m],
-                            d: xp - xq,
-                            share: wp / (wp + wq),
-                        };
-                        correction += push(adjacency, distance, pair);
-                    }
+            .filter_map(|j| {
+                let p = order[j];
+                let wp = weights[p as usize];
+                if wp <= 0.0 {
+                    return None;
                 }
-                correction
+                let xp = current[p as usize];
+                let mut correction = Vec3::ZERO;
+                for m in window_of(j, config.window, &keys) {
+                    let q = order[m];
+                    let wq = weights[q as usize];
+                    let pair = Pair {
+                        p,
+                        q,
+                        d: xp - current[q as usize],
+                        share: wp / (wp + wq),
+                    };
+                    correction += push(adjacency, distance, pair);
+                }
+                (correction != Vec3::ZERO).then_some((p, correction))
             })
             .collect();
-        for (&p, c) in order.iter().zip(corrections) {
+        for (p, c) in moves {
             positions[p as usize] += c;
             deltas[p as usize] += c;
         }
