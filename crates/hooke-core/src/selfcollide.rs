@@ -173,6 +173,12 @@ pub fn resolve(
         let moves: Vec<(u32, Vec3)> = (0..order.len())
             .into_par_iter()
             .filter_map(|j| {
+                // Checked before touching the vertex: its data sits at a random address.
+                let alone = (j == 0 || keys[j - 1] != keys[j])
+                    && keys.get(j + 1).is_none_or(|&next| next != keys[j]);
+                if alone {
+                    return None;
+                }
                 let p = order[j];
                 let wp = weights[p as usize];
                 if wp <= 0.0 {
