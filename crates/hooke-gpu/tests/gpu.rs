@@ -575,3 +575,30 @@ fn a_keyframed_collider_moves_the_same_on_the_gpu_as_on_the_reference() {
     );
     assert!(error < 2e-2, "relative L2 {error:.2e}");
 }
+
+#[test]
+fn the_fig4_balls_move_the_same_on_the_gpu_as_on_the_reference() {
+    let Some(context) = context() else { return };
+    let scene = hooke_core::scene::SceneFile::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../scenes/wind-and-balls.toml"
+    )))
+    .and_then(|file| file.build(Path::new("wind-and-balls"), false))
+    .expect("scene");
+    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+    let mut gpu =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    // Three balls land on the sheet, roll into each other and are pushed (0.6 s).
+    reference.step(3000).expect("stable");
+    gpu.step(3000).expect("stable");
+    for (expected, actual) in reference.colliders().iter().zip(gpu.colliders()) {
+        let gap = expected.anchor().distance(actual.anchor());
+        assert!(
+            gap < 5e-3,
+            "{:?} vs {:?}: {gap} m apart",
+            expected.shape,
+            actual.shape
+        );
+        assert!((expected.velocity - actual.velocity).length() < 2e-2);
+    }
+}
