@@ -267,6 +267,13 @@ pub fn placed(colliders: &[Collider], t: f64) -> Vec<Collider> {
     colliders.iter().map(|c| c.at(t)).collect()
 }
 
+/// The first dynamic ball whose place or velocity is not finite.
+pub fn first_non_finite_ball(colliders: &[Collider]) -> Option<usize> {
+    colliders
+        .iter()
+        .position(|c| c.dynamics.is_some() && !(c.anchor().is_finite() && c.velocity.is_finite()))
+}
+
 /// True if any collider is a dynamic ball.
 pub fn any_dynamic(colliders: &[Collider]) -> bool {
     colliders.iter().any(|c| c.dynamics.is_some())

@@ -6,7 +6,9 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::collide::{Collider, advance_balls, carry_over, placed, resolve_and_report};
+use crate::collide::{
+    Collider, advance_balls, carry_over, first_non_finite_ball, placed, resolve_and_report,
+};
 use crate::diagnostics::spring_force_on_a;
 use crate::forces::add_external_forces;
 use crate::selfcollide::{self, SelfCollision};
@@ -84,6 +86,12 @@ impl ReferenceSolver {
             state.positions[i] = next;
         }
         advance_balls(&mut self.colliders, &pushes, params.gravity, dt, t);
+        if let Some(collider) = first_non_finite_ball(&self.colliders) {
+            return Err(SimError::BallNonFinite {
+                step: self.steps_taken,
+                collider,
+            });
+        }
         if let Some(config) = &params.self_collision {
             resolve_self_collisions(model, state, config);
         }

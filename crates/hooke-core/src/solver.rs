@@ -45,6 +45,10 @@ pub enum SimError {
         b: u32,
         stretch: f64,
     },
+    #[error(
+        "step {step}: the dynamic ball of collider {collider} reached a non-finite position or velocity; its mass is too small for the forces on it, or the time step too large"
+    )]
+    BallNonFinite { step: u64, collider: usize },
     #[error("step {step}: {detail}")]
     Overflow { step: u64, detail: String },
     #[error("the solver's device failed: {0}")]

@@ -262,3 +262,16 @@ pub fn mean_pin_reaction(solver: &mut dyn Solver, scene: &Scene, steps: u32) -> 
     }
     total / f64::from(steps)
 }
+
+/// [`ball_onto_sheet`] with a ball so light and pushed so hard that it leaves the numbers in
+/// its first step: every solver must say so, naming the step and the collider.
+pub fn exploding_ball() -> Scene {
+    let mut scene = ball_onto_sheet();
+    let dynamics = scene.params.colliders[0]
+        .dynamics
+        .as_mut()
+        .expect("a dynamic ball");
+    dynamics.mass = 1e-300;
+    dynamics.force = glam::DVec3::new(1e308, 0.0, 0.0);
+    scene
+}

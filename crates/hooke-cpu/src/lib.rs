@@ -323,9 +323,21 @@ impl CpuSolver {
                 })
             }
         };
-        self.collide();
+        let bad_ball = self.collide();
         self.self_collide();
-        self.finish_step(all_finite)
+        self.finish_step(all_finite)?;
+        self.check_balls(bad_ball)
+    }
+
+    /// Reports a dynamic ball that `collide` found non-finite, at the step just finished.
+    fn check_balls(&self, bad_ball: Option<usize>) -> Result<(), SimError> {
+        match bad_ball {
+            Some(collider) => Err(SimError::BallNonFinite {
+                step: self.steps_taken,
+                collider,
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
@@ -357,10 +369,11 @@ impl CpuSolver {
 
     /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in
     /// parallel over vertex chunks, before the new positions become current; then advances
-    /// dynamic balls by the momentum the cloth took from them.
-    fn collide(&mut self) {
+    /// dynamic balls by the momentum the cloth took from them. Returns the first ball that
+    /// became non-finite.
+    fn collide(&mut self) -> Option<usize> {
         if self.colliders.is_empty() {
-            return;
+            return None;
         }
         let (colliders, thickness) = (&self.colliders, self.params.collision_thickness);
         // Colliders are placed where they are at the end of the step being finished.
@@ -426,6 +439,7 @@ impl CpuSolver {
             }
             collide::advance_balls(&mut self.colliders, &pushes, self.params.gravity, dt, t);
         }
+        collide::first_non_finite_ball(&self.colliders)
     }
 
     /// One step with every phase as its own pass, timed. Results equal [`Solver::step`]'s.
@@ -476,12 +490,14 @@ impl CpuSolver {
             all_finite
         });
         let start = Instant::now();
-        pool.install(|| {
-            self.collide();
+        let bad_ball = pool.install(|| {
+            let bad_ball = self.collide();
             self.self_collide();
+            bad_ball
         });
         times.collision = start.elapsed();
         self.finish_step(all_finite)?;
+        self.check_balls(bad_ball)?;
         Ok(times)
     }
 

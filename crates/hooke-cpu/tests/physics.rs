@@ -565,3 +565,21 @@ fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_every_solver() {
         hooke_core::test_scenes::check_ball_dropped_on_sheet(solver.as_mut(), &scene);
     }
 }
+
+#[test]
+fn a_ball_leaving_the_numbers_is_reported_with_step_and_collider() {
+    let scene = hooke_core::test_scenes::exploding_ball();
+    for mut solver in all_solvers(&scene.model, &scene.params) {
+        let error = solver.step(5).expect_err("the ball explodes");
+        assert_eq!(
+            error,
+            SimError::BallNonFinite {
+                step: 1,
+                collider: 0
+            },
+            "{}",
+            solver.describe()
+        );
+        assert!(error.to_string().contains("collider 0"));
+    }
+}

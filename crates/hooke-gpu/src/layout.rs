@@ -68,6 +68,8 @@ pub struct GpuStatus {
 
 impl GpuStatus {
     pub const NO_FAILURE: u32 = u32::MAX;
+    /// Set in `first_bad_vertex` when the bad one is a dynamic ball (`BALL_MARK` in WGSL).
+    pub const BALL_MARK: u32 = 0x8000_0000;
 
     pub fn fresh(step_counter: u32) -> Self {
         Self {

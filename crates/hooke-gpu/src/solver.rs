@@ -759,9 +759,17 @@ impl GpuSolver {
         let status: GpuStatus = bytemuck::pod_read_unaligned(bytes);
         if status.first_bad_step != GpuStatus::NO_FAILURE {
             self.steps_taken = u64::from(status.first_bad_step);
-            return Err(RunError::Sim(SimError::NonFinite {
-                step: self.steps_taken,
-                vertex: status.first_bad_vertex as usize,
+            let bad = status.first_bad_vertex;
+            return Err(RunError::Sim(if bad & GpuStatus::BALL_MARK != 0 {
+                SimError::BallNonFinite {
+                    step: self.steps_taken,
+                    collider: (bad & !GpuStatus::BALL_MARK) as usize,
+                }
+            } else {
+                SimError::NonFinite {
+                    step: self.steps_taken,
+                    vertex: bad as usize,
+                }
             }));
         }
         if status.fixed_overflow != 0 {
@@ -1701,6 +1709,7 @@ impl GpuSolver {
                     (0, self.uniform_buffer.as_entire_binding()),
                     (1, colliders.as_entire_binding()),
                     (2, reactions.as_entire_binding()),
+                    (4, self.status.as_entire_binding()),
                 ],
             );
             let contacts_group = bind_group(

@@ -602,3 +602,19 @@ fn the_fig4_balls_move_the_same_on_the_gpu_as_on_the_reference() {
         assert!((expected.velocity - actual.velocity).length() < 2e-2);
     }
 }
+
+#[test]
+fn a_ball_leaving_the_numbers_is_reported_on_the_gpu() {
+    let Some(context) = context() else { return };
+    let scene = hooke_core::test_scenes::exploding_ball();
+    let mut solver =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let error = solver.step(5).expect_err("the ball explodes");
+    assert_eq!(
+        error,
+        SimError::BallNonFinite {
+            step: 1,
+            collider: 0
+        }
+    );
+}

@@ -7,6 +7,7 @@
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read_write> colliders: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> reactions: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> status: Status;
 
 var<workgroup> partial: array<vec3<f32>, 64>;
 
@@ -42,8 +43,17 @@ fn advance(
     let gravity = u.gravity_step.xyz * u.inverse_dt * u.inverse_dt;
     let force = colliders[4u * c + 3u].xyz - partial[0];
     let velocity = colliders[4u * c + 2u].xyz + (force * inverse_mass + gravity) * dt;
+    let position = colliders[4u * c].xyz + velocity * dt;
     colliders[4u * c + 2u] = vec4<f32>(velocity, inverse_mass);
-    colliders[4u * c] = vec4<f32>(colliders[4u * c].xyz + velocity * dt, colliders[4u * c].w);
+    colliders[4u * c] = vec4<f32>(position, colliders[4u * c].w);
+    if !is_finite3(position) || !is_finite3(velocity) {
+        // Reported like a vertex, marked as a ball (a bad vertex of the same step wins).
+        let step = status.step_counter + 1u;
+        let previous = atomicMin(&status.first_bad_step, step);
+        if previous >= step {
+            atomicMin(&status.first_bad_vertex, BALL_MARK | c);
+        }
+    }
 }
 
 // The status buffer, for the step counter that places scripted colliders.

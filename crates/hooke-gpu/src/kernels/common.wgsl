@@ -50,6 +50,8 @@ struct Spring {
 }
 
 const WORKGROUP_SIZE: u32 = 64u;
+// Status: a first bad "vertex" with this bit set is the dynamic ball of that collider.
+const BALL_MARK: u32 = 0x80000000u;
 // Incidence entries: spring index plus this bit when the vertex is the spring's far end.
 const B_END: u32 = 0x80000000u;
 
