@@ -34,6 +34,12 @@ pub enum Shape {
         point: DVec3,
         normal: DVec3,
     },
+    /// Every point within `radius` of the segment from `start` to `end`.
+    Capsule {
+        start: DVec3,
+        end: DVec3,
+        radius: f64,
+    },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -125,8 +131,33 @@ impl Shape {
         match *self {
             Shape::Sphere { center, radius } => p.distance(center) - radius,
             Shape::Plane { point, normal } => (p - point).dot(normal),
+            Shape::Capsule { start, end, radius } => {
+                p.distance(closest_on_segment(start, end, p)) - radius
+            }
         }
     }
+
+    /// The sphere that stands in for this shape near `p`: a sphere itself, or for a capsule the
+    /// sphere of its radius around the axis point closest to `p`.
+    fn sphere_near(&self, p: DVec3) -> Option<(DVec3, f64)> {
+        match *self {
+            Shape::Sphere { center, radius } => Some((center, radius)),
+            Shape::Capsule { start, end, radius } => {
+                Some((closest_on_segment(start, end, p), radius))
+            }
+            Shape::Plane { .. } => None,
+        }
+    }
+}
+
+/// The point of the segment `start..end` closest to `p`.
+pub fn closest_on_segment(start: DVec3, end: DVec3, p: DVec3) -> DVec3 {
+    let axis = end - start;
+    let length2 = axis.length_squared();
+    if length2 == 0.0 {
+        return start;
+    }
+    start + axis * ((p - start).dot(axis) / length2).clamp(0.0, 1.0)
 }
 
 impl Collider {
@@ -161,6 +192,13 @@ impl Collider {
                 point: place,
                 normal,
             },
+            Shape::Capsule {
+                start, end, radius, ..
+            } => Shape::Capsule {
+                start: place,
+                end: place + (end - start),
+                radius,
+            },
         };
         Self {
             shape,
@@ -169,27 +207,29 @@ impl Collider {
         }
     }
 
-    /// The centre of a sphere, the point of a plane.
+    /// The centre of a sphere, the point of a plane, the start of a capsule's axis.
     pub fn anchor(&self) -> DVec3 {
         match self.shape {
             Shape::Sphere { center, .. } => center,
             Shape::Plane { point, .. } => point,
+            Shape::Capsule { start, .. } => start,
         }
     }
 
     /// Outward normal and depth of `p` inside the collider grown by `thickness`, if inside.
     pub fn penetration(&self, p: DVec3, thickness: f64) -> Option<(DVec3, f64)> {
-        match self.shape {
-            Shape::Sphere { center, radius } => {
+        match (self.shape, self.shape.sphere_near(p)) {
+            (_, Some((center, radius))) => {
                 let offset = p - center;
                 let distance = offset.length();
                 let depth = radius + thickness - distance;
                 (depth > 0.0).then(|| (offset.try_normalize().unwrap_or(DVec3::Y), depth))
             }
-            Shape::Plane { point, normal } => {
+            (Shape::Plane { point, normal }, None) => {
                 let depth = thickness - (p - point).dot(normal);
                 (depth > 0.0).then_some((normal, depth))
             }
+            (_, None) => None,
         }
     }
 }
@@ -332,16 +372,14 @@ fn meet(ball: &mut Collider, dynamics: Dynamics, obstacle: &mut Collider, t: f64
         return;
     };
     let placed = obstacle.at(t);
-    let (normal, depth) = match placed.shape {
-        Shape::Plane { point, normal } => (normal, radius - (center - point).dot(normal)),
-        Shape::Sphere {
-            center: other,
-            radius: other_radius,
-        } => {
+    let (normal, depth) = match (placed.shape, placed.shape.sphere_near(center)) {
+        (_, Some((other, other_radius))) => {
             let offset = center - other;
             let normal = offset.try_normalize().unwrap_or(DVec3::Y);
             (normal, radius + other_radius - offset.length())
         }
+        (Shape::Plane { point, normal }, None) => (normal, radius - (center - point).dot(normal)),
+        (_, None) => return,
     };
     if depth <= 0.0 {
         return;
@@ -547,5 +585,34 @@ mod tests {
         assert_eq!(looping.sample(4.5).0, looping.sample(1.5).0);
         assert!(KeyframePath::new(&keys[..1], false).is_none());
         assert!(KeyframePath::new(&[keys[1], keys[0]], false).is_none());
+    }
+
+    #[test]
+    fn a_capsule_pushes_out_from_its_axis_and_caps() {
+        let capsule = Collider::fixed(
+            Shape::Capsule {
+                start: DVec3::ZERO,
+                end: DVec3::new(2.0, 0.0, 0.0),
+                radius: 0.5,
+            },
+            0.0,
+        );
+        let from = |p: DVec3| resolve(&[capsule], 0.1, 0.0, 0.01, p, p);
+        // Beside the axis: out along the radius; past an end: out of the cap.
+        assert!((from(DVec3::new(1.0, 0.3, 0.0)) - DVec3::new(1.0, 0.6, 0.0)).length() < 1e-12);
+        assert!((from(DVec3::new(2.2, 0.0, 0.0)) - DVec3::new(2.6, 0.0, 0.0)).length() < 1e-12);
+        assert!((capsule.shape.clearance(DVec3::new(-1.0, 0.0, 0.0)) - 0.5).abs() < 1e-12);
+        // A scripted capsule moves whole.
+        let moving = Collider {
+            velocity: DVec3::Y,
+            ..capsule
+        };
+        let Shape::Capsule { start, end, .. } = moving.at(2.0).shape else {
+            panic!("a capsule")
+        };
+        assert_eq!(
+            (start, end),
+            (DVec3::new(0.0, 2.0, 0.0), DVec3::new(2.0, 2.0, 0.0))
+        );
     }
 }

@@ -78,9 +78,11 @@ fn default_window() -> u32 {
 pub enum ColliderKind {
     Sphere,
     Plane,
+    Capsule,
 }
 
-/// A sphere (`center`, `radius`) or a plane (`point`, `normal`; solid behind the normal).
+/// A sphere (`center`, `radius`), a plane (`point`, `normal`; solid behind the normal) or a
+/// capsule (`start`, `end`, `radius`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ColliderSection {
@@ -93,6 +95,11 @@ pub struct ColliderSection {
     pub point: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal: Option<[f64; 3]>,
+    /// A capsule's axis runs from `start` to `end`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end: Option<[f64; 3]>,
     /// Share of tangential motion removed per contact step, 0..1.
     #[serde(default)]
     pub friction: f64,
@@ -783,20 +790,26 @@ impl SceneFile {
                 .as_ref()
                 .and_then(|keys| keys.first())
                 .map(|[_, x, y, z]| [*x, *y, *z]);
+            let radius = || {
+                let radius = c.radius.unwrap_or(f64::NAN);
+                require(radius > 0.0 && radius.is_finite(), || {
+                    invalid(
+                        &field("radius"),
+                        format!("must be a positive number, found {radius}"),
+                    )
+                })?;
+                Ok::<f64, SceneError>(radius)
+            };
             let shape = match c.kind {
-                ColliderKind::Sphere => {
-                    let radius = c.radius.unwrap_or(f64::NAN);
-                    require(radius > 0.0 && radius.is_finite(), || {
-                        invalid(
-                            &field("radius"),
-                            format!("must be a positive number, found {radius}"),
-                        )
-                    })?;
-                    Shape::Sphere {
-                        center: need("center", c.center.or(start))?,
-                        radius,
-                    }
-                }
+                ColliderKind::Sphere => Shape::Sphere {
+                    center: need("center", c.center.or(start))?,
+                    radius: radius()?,
+                },
+                ColliderKind::Capsule => Shape::Capsule {
+                    start: need("start", c.start.or(start))?,
+                    end: need("end", c.end)?,
+                    radius: radius()?,
+                },
                 ColliderKind::Plane => {
                     let normal = need("normal", c.normal)?;
                     let normal = normal
@@ -859,7 +872,7 @@ impl SceneFile {
                     }
                     None
                 }
-                (Some(_), ColliderKind::Plane) => {
+                (Some(_), ColliderKind::Plane | ColliderKind::Capsule) => {
                     return Err(invalid(
                         &field("mass"),
                         "only spheres can be dynamic".into(),
@@ -1159,6 +1172,17 @@ select = ["corners"]
                 .to_string()
                 .contains("collider[0].force: applies only to a ball with a mass")
         );
+        let capsule = format!(
+            "{CLOTH}\n[[collider]]\nkind = \"capsule\"\nstart = [0, 0, 0]\nend = [1, 0, 0]\nradius = 0.1\n"
+        );
+        assert!(matches!(
+            build(&capsule).expect("builds").params.colliders[0].shape,
+            Shape::Capsule { radius, .. } if radius == 0.1
+        ));
+        let error = build(&capsule.replace("end = [1, 0, 0]\n", ""))
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("collider[0].end"), "{error}");
         let off = text.replace("grids = 3", "grids = 3\nenabled = false");
         assert!(build(&off).expect("builds").params.self_collision.is_none());
         // A keyframed path: the sphere starts at the first keyframe.

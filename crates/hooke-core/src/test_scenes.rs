@@ -275,3 +275,15 @@ pub fn exploding_ball() -> Scene {
     dynamics.force = glam::DVec3::new(1e308, 0.0, 0.0);
     scene
 }
+
+/// [`cloth_onto_ball`] with the ball replaced by a capsule lying along z, its axis from
+/// z = -0.6 to 0.6 at 0.3 m height, radius 0.1 m: the cloth folds over a bar.
+pub fn cloth_onto_capsule() -> Scene {
+    let mut scene = cloth_onto_ball();
+    scene.params.colliders[0].shape = crate::collide::Shape::Capsule {
+        start: glam::DVec3::new(0.0, 0.3, -0.6),
+        end: glam::DVec3::new(0.0, 0.3, 0.6),
+        radius: 0.1,
+    };
+    scene
+}

@@ -418,12 +418,14 @@ fn avx2_and_portable_kernels_are_bit_identical() {
 }
 
 /// The closest any vertex comes to the surfaces of the ball and the ground (negative: inside).
+/// Smallest clearance of the cloth from the round colliders (spheres, capsules) and from the
+/// planes.
 fn clearances(scene: &Scene, positions: &[DVec3]) -> (f64, f64) {
     use hooke_core::collide::Shape;
-    let closest = |sphere: bool| {
+    let closest = |round: bool| {
         let colliders = scene.params.colliders.iter();
         colliders
-            .filter(|c| matches!(c.shape, Shape::Sphere { .. }) == sphere)
+            .filter(|c| !matches!(c.shape, Shape::Plane { .. }) == round)
             .flat_map(|c| positions.iter().map(|p| c.shape.clearance(*p)))
             .fold(f64::INFINITY, f64::min)
     };
@@ -431,14 +433,22 @@ fn clearances(scene: &Scene, positions: &[DVec3]) -> (f64, f64) {
 }
 
 #[test]
-fn cloth_dropped_on_a_ball_never_enters_it_or_the_ground() {
-    let scene = hooke_core::test_scenes::cloth_onto_ball();
+fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_or_the_ground() {
+    for scene in [
+        hooke_core::test_scenes::cloth_onto_ball(),
+        hooke_core::test_scenes::cloth_onto_capsule(),
+    ] {
+        check_cloth_stays_out(&scene);
+    }
+}
+
+fn check_cloth_stays_out(scene: &Scene) {
     let thickness = scene.params.collision_thickness;
     for mut solver in all_solvers(&scene.model, &scene.params) {
         let mut touched = false;
         for _ in 0..40 {
             solver.step(100).expect("stable");
-            let (ball, ground) = clearances(&scene, &solver.read_state().positions);
+            let (ball, ground) = clearances(scene, &solver.read_state().positions);
             // Projection puts a vertex exactly at the thickness; f32 rounding of positions of
             // order 1 m is below 1e-6 m.
             assert!(

@@ -991,8 +991,13 @@ fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
         .iter()
         .flat_map(|c| {
             let v = c.velocity.as_vec3();
-            // Entry 3: a dynamic ball's force and restitution, or a script's repeat flag and
-            // keyframe count.
+            // Entry 3: a dynamic ball's force and restitution, or a capsule mark, a script's
+            // repeat flag and keyframe count.
+            let capsule = if matches!(c.shape, Shape::Capsule { .. }) {
+                1.0
+            } else {
+                0.0
+            };
             let (inverse_mass, script) = match (c.dynamics, c.path) {
                 (Some(d), _) => {
                     let f = d.force.as_vec3();
@@ -1000,9 +1005,9 @@ fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
                 }
                 (None, Some(path)) => {
                     let repeat = if path.repeat { 1.0 } else { 0.0 };
-                    (0.0, [0.0, 0.0, repeat, path.keyframes().len() as f32])
+                    (0.0, [capsule, 0.0, repeat, path.keyframes().len() as f32])
                 }
-                (None, None) => (0.0, [0.0; 4]),
+                (None, None) => (0.0, [capsule, 0.0, 0.0, 0.0]),
             };
             let motion = [v.x, v.y, v.z, inverse_mass];
             let friction = c.friction as f32;
@@ -1014,6 +1019,10 @@ fn collider_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
                 Shape::Plane { point, normal } => {
                     let (p, n) = (point.as_vec3(), normal.as_vec3());
                     ([p.x, p.y, p.z, -1.0], [n.x, n.y, n.z, friction])
+                }
+                Shape::Capsule { start, end, radius } => {
+                    let (p, a) = (start.as_vec3(), (end - start).as_vec3());
+                    ([p.x, p.y, p.z, radius as f32], [a.x, a.y, a.z, friction])
                 }
             };
             [place, surface, motion, script]

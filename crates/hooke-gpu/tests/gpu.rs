@@ -322,15 +322,24 @@ fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
 }
 
 #[test]
-fn cloth_dropped_on_a_ball_never_enters_it_on_the_gpu() {
+fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
     use hooke_core::collide::Shape;
     let Some(context) = context() else { return };
-    let scene = hooke_core::test_scenes::cloth_onto_ball();
-    let thickness = scene.params.collision_thickness;
-    for method in [
-        GpuMethod::Gather,
-        GpuMethod::Scatter(Accumulation::Incidence),
+    for (scene, method) in [
+        (
+            hooke_core::test_scenes::cloth_onto_ball(),
+            GpuMethod::Gather,
+        ),
+        (
+            hooke_core::test_scenes::cloth_onto_ball(),
+            GpuMethod::Scatter(Accumulation::Incidence),
+        ),
+        (
+            hooke_core::test_scenes::cloth_onto_capsule(),
+            GpuMethod::Gather,
+        ),
     ] {
+        let thickness = scene.params.collision_thickness;
         let mut solver = GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method)
             .expect("solver");
         let mut touched = false;
@@ -347,7 +356,7 @@ fn cloth_dropped_on_a_ball_never_enters_it_on_the_gpu() {
                         collider.shape,
                         solver.steps_taken()
                     );
-                    if matches!(collider.shape, Shape::Sphere { .. }) {
+                    if !matches!(collider.shape, Shape::Plane { .. }) {
                         touched |= clearance < thickness + 1e-3;
                     }
                 }
@@ -355,7 +364,7 @@ fn cloth_dropped_on_a_ball_never_enters_it_on_the_gpu() {
         }
         assert!(
             touched,
-            "{}: the cloth never reached the ball",
+            "{}: the cloth never reached the ball or bar",
             method.name()
         );
     }
@@ -616,5 +625,45 @@ fn a_ball_leaving_the_numbers_is_reported_on_the_gpu() {
             step: 1,
             collider: 0
         }
+    );
+}
+
+#[test]
+fn a_ball_comes_to_rest_on_a_capsule_on_the_gpu_as_on_the_reference() {
+    use hooke_core::collide::{Collider, Shape};
+    let Some(context) = context() else { return };
+    let mut scene = hooke_core::test_scenes::ball_onto_sheet();
+    // Beside the sheet, the ball drops 0.2 m onto a bar along z (radii 0.15 and 0.05 m).
+    let ball = &mut scene.params.colliders[0];
+    ball.shape = Shape::Sphere {
+        center: DVec3::new(2.0, 0.6, 0.0),
+        radius: 0.15,
+    };
+    ball.dynamics.as_mut().expect("dynamic").restitution = 0.0;
+    scene.params.colliders.push(Collider::fixed(
+        Shape::Capsule {
+            start: DVec3::new(2.0, 0.2, -1.0),
+            end: DVec3::new(2.0, 0.2, 1.0),
+            radius: 0.05,
+        },
+        1.0,
+    ));
+    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+    let mut gpu =
+        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    reference.step(3000).expect("stable");
+    gpu.step(3000).expect("stable");
+    let (expected, actual) = (reference.colliders()[0], gpu.colliders()[0]);
+    // Resting on top of the bar: centre 0.2 m above its axis.
+    let on_top = DVec3::new(2.0, 0.4, 0.0);
+    assert!(
+        expected.anchor().distance(on_top) < 1e-3,
+        "{:?}",
+        expected.shape
+    );
+    assert!(
+        actual.anchor().distance(expected.anchor()) < 1e-4,
+        "{:?}",
+        actual.shape
     );
 }

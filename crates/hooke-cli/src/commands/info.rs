@@ -90,6 +90,9 @@ fn describe_collider(collider: &Collider) -> String {
     let shape = match collider.shape {
         Shape::Sphere { center, radius } => format!("sphere r = {radius} m at {center}"),
         Shape::Plane { point, normal } => format!("plane through {point}, normal {normal}"),
+        Shape::Capsule { start, end, radius } => {
+            format!("capsule r = {radius} m from {start} to {end}")
+        }
     };
     let motion = match (collider.dynamics, collider.path) {
         (Some(d), _) => format!(

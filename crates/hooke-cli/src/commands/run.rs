@@ -220,7 +220,7 @@ fn summarize(
                     center: center.to_array(),
                     velocity: c.velocity.to_array(),
                 }),
-                Shape::Plane { .. } => None,
+                Shape::Plane { .. } | Shape::Capsule { .. } => None,
             })
             .collect(),
     }

@@ -90,7 +90,7 @@ fn contacts() {
                 normal = colliders[4u * o + 1u].xyz;
                 depth = ball.w - dot(ball.xyz - other.xyz, normal);
             } else {
-                let offset = ball.xyz - other.xyz;
+                let offset = ball.xyz - round_center(o, other.xyz, ball.xyz);
                 let distance = length(offset);
                 normal = select(vec3<f32>(0.0, 1.0, 0.0), offset / distance, distance > 0.0);
                 depth = ball.w + other.w - distance;

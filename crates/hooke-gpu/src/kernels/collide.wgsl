@@ -7,9 +7,9 @@
 @group(0) @binding(2) var<storage, read_write> next_positions: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> deltas: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
-// Four entries per collider: (centre or point xyz, radius; < 0 for a plane), (a plane's
-// normal or a ball's spin xyz, friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
-// restitution; for a scripted collider: 0, 0, repeat, keyframes). A scripted collider's first
+// Four entries per collider: (centre, point or capsule start xyz, radius; < 0 for a plane),
+// (a plane's normal, a ball's spin or a capsule's axis end - start xyz, friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
+// restitution; for a scripted collider: 1 if a capsule, 0, repeat, keyframes). A scripted collider's first
 // entry is its place at time 0; a dynamic ball's is where it is now (balls.wgsl moves it).
 @group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;
 // The status buffer, read only here for its step counter (the fourth word).
@@ -42,7 +42,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         var normal = surface.xyz;
         var depth: f32;
         if shape.w >= 0.0 {
-            let offset = p - shape.xyz;
+            let offset = p - round_center(c, shape.xyz, p);
             let distance = length(offset);
             normal = select(vec3<f32>(0.0, 1.0, 0.0), offset / distance, distance > 0.0);
             depth = shape.w + u.collision_thickness - distance;

@@ -122,6 +122,10 @@ pub struct SceneRenderer {
     /// Per sphere: applied force direction and arrow length (zero length: no arrow).
     sphere_forces: wgpu::Buffer,
     ball_force: wgpu::RenderPipeline,
+    capsule: wgpu::RenderPipeline,
+    /// Per capsule: (start, radius), (end, 0).
+    capsules: wgpu::Buffer,
+    capsule_count: u32,
     frame: wgpu::Buffer,
     counts: wgpu::Buffer,
     triangles: wgpu::Buffer,
@@ -243,6 +247,9 @@ impl SceneRenderer {
             sphere_count: 0,
             sphere_forces: storage(context, "ball forces", &[[0.0f32; 4]], none),
             ball_force: pipeline("ball forces", "vs_ball_force", "fs_flat", lines),
+            capsule: pipeline("collider capsules", "vs_capsule", "fs_sphere", list),
+            capsules: storage(context, "collider capsules", &[[0.0f32; 4]; 2], none),
+            capsule_count: 0,
             frame,
             counts,
             triangles: storage(context, "render triangles", &triangles, none),
@@ -286,9 +293,28 @@ impl SceneRenderer {
                     let c = center.as_vec3();
                     Some([c.x, c.y, c.z, radius as f32])
                 }
-                Shape::Plane { .. } => None,
+                Shape::Plane { .. } | Shape::Capsule { .. } => None,
             })
             .collect();
+        let capsules: Vec<[f32; 4]> = colliders
+            .iter()
+            .flat_map(|c| match c.shape {
+                Shape::Capsule { start, end, radius } => {
+                    let (a, b) = (start.as_vec3(), end.as_vec3());
+                    vec![[a.x, a.y, a.z, radius as f32], [b.x, b.y, b.z, 0.0]]
+                }
+                _ => Vec::new(),
+            })
+            .collect();
+        if !capsules.is_empty() {
+            self.capsules = storage(
+                context,
+                "collider capsules",
+                &capsules,
+                wgpu::BufferUsages::empty(),
+            );
+        }
+        self.capsule_count = capsules.len() as u32 / 2;
         let forces: Vec<[f32; 4]> = colliders
             .iter()
             .filter(|c| matches!(c.shape, Shape::Sphere { .. }))
@@ -447,6 +473,16 @@ impl SceneRenderer {
                 (10, self.sphere_forces.as_entire_binding()),
             ],
         );
+        let capsule_group = bind_group(
+            context,
+            "collider capsules",
+            &self.capsule.get_bind_group_layout(0),
+            &[
+                (0, self.frame.as_entire_binding()),
+                (9, self.sphere_mesh.as_entire_binding()),
+                (11, self.capsules.as_entire_binding()),
+            ],
+        );
         let depth = self.depth_view(context, size);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("scene"),
@@ -486,6 +522,11 @@ impl SceneRenderer {
             pass.set_pipeline(&self.ball_force);
             pass.set_bind_group(0, &force_group, &[]);
             pass.draw(0..6, 0..self.sphere_count);
+        }
+        if self.capsule_count > 0 {
+            pass.set_pipeline(&self.capsule);
+            pass.set_bind_group(0, &capsule_group, &[]);
+            pass.draw(0..self.sphere_mesh_vertices, 0..self.capsule_count);
         }
         pass.set_pipeline(&self.cloth);
         pass.set_bind_group(0, &cloth_group, &[]);

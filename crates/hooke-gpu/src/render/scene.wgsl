@@ -212,6 +212,31 @@ fn fs_sphere(in: SphereOut) -> @location(0) vec4<f32> {
     return vec4<f32>(fog(color, in.world), 1.0);
 }
 
+// Capsules: per capsule (start xyz, radius) and (end xyz, 0). The unit sphere's upper half
+// is drawn around the end, its lower half around the start; the triangles across the equator
+// stretch into the cylinder between.
+@group(0) @binding(11) var<storage, read> capsules: array<vec4<f32>>;
+
+@vertex
+fn vs_capsule(@builtin(vertex_index) index: u32, @builtin(instance_index) capsule: u32) -> SphereOut {
+    let unit = sphere_mesh[index].xyz;
+    let start = capsules[2u * capsule];
+    let end = capsules[2u * capsule + 1u].xyz;
+    let axis = end - start.xyz;
+    let span = length(axis);
+    let up = select(vec3<f32>(0.0, 1.0, 0.0), axis / span, span > 0.0);
+    let helper = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 0.0, 1.0), abs(up.x) > 0.9);
+    let side = normalize(cross(up, helper));
+    let front = cross(side, up);
+    let normal = side * unit.x + up * unit.y + front * unit.z;
+    let base = select(start.xyz, end, unit.y > -1e-3);
+    var out: SphereOut;
+    out.world = base + normal * start.w * 0.995;
+    out.normal = normal;
+    out.clip = frame.view_projection * vec4<f32>(out.world, 1.0);
+    return out;
+}
+
 // Forces applied to dynamic balls (the paper's Fig. 4 arrows): per sphere, the force's
 // direction (xyz) and the arrow's length (w, 0 for none), drawn from the ball's surface.
 @group(0) @binding(10) var<storage, read> sphere_forces: array<vec4<f32>>;
