@@ -428,17 +428,13 @@ mod tests {
 
     #[test]
     fn point_inside_sphere_ends_on_its_grown_surface() {
-        let sphere = Collider {
-            shape: Shape::Sphere {
+        let sphere = Collider::fixed(
+            Shape::Sphere {
                 center: DVec3::ZERO,
                 radius: 1.0,
             },
-            friction: 0.0,
-            velocity: DVec3::ZERO,
-            dynamics: None,
-            spin: DVec3::ZERO,
-            path: None,
-        };
+            0.0,
+        );
         let p = resolve(
             &[sphere],
             0.1,
@@ -453,15 +449,14 @@ mod tests {
     #[test]
     fn a_moving_ball_is_met_where_its_script_puts_it() {
         let ball = Collider {
-            shape: Shape::Sphere {
-                center: DVec3::ZERO,
-                radius: 0.5,
-            },
-            friction: 0.0,
             velocity: DVec3::X,
-            dynamics: None,
-            spin: DVec3::ZERO,
-            path: None,
+            ..Collider::fixed(
+                Shape::Sphere {
+                    center: DVec3::ZERO,
+                    radius: 0.5,
+                },
+                0.0,
+            )
         };
         // At t = 2 the ball is centred at x = 2: a point at x = 2.2 is inside and pushed out.
         let p = resolve(
@@ -486,16 +481,14 @@ mod tests {
 
     #[test]
     fn friction_removes_tangential_motion_on_a_plane() {
-        let plane = |friction| Collider {
-            shape: Shape::Plane {
-                point: DVec3::ZERO,
-                normal: DVec3::Y,
-            },
-            friction,
-            velocity: DVec3::ZERO,
-            dynamics: None,
-            spin: DVec3::ZERO,
-            path: None,
+        let plane = |friction| {
+            Collider::fixed(
+                Shape::Plane {
+                    point: DVec3::ZERO,
+                    normal: DVec3::Y,
+                },
+                friction,
+            )
         };
         let (from, to) = (DVec3::new(0.0, 0.01, 0.0), DVec3::new(0.5, -0.1, 0.0));
         let slippery = resolve(&[plane(0.0)], 0.0, 1.0, 0.01, from, to);
@@ -520,19 +513,18 @@ mod tests {
         );
         let (mass, radius, force) = (2.0, 0.1, 3.0);
         let ball = Collider {
-            shape: Shape::Sphere {
-                center: DVec3::new(0.0, radius, 0.0),
-                radius,
-            },
-            friction: 0.0,
-            velocity: DVec3::ZERO,
             dynamics: Some(Dynamics {
                 mass,
                 force: DVec3::new(force, 0.0, 0.0),
                 restitution: 0.0,
             }),
-            spin: DVec3::ZERO,
-            path: None,
+            ..Collider::fixed(
+                Shape::Sphere {
+                    center: DVec3::new(0.0, radius, 0.0),
+                    radius,
+                },
+                0.0,
+            )
         };
         let mut colliders = [ground, ball];
         let (dt, steps) = (1e-3, 1000);

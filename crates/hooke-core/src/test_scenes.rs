@@ -287,3 +287,65 @@ pub fn cloth_onto_capsule() -> Scene {
     };
     scene
 }
+
+/// Steps a scene with round colliders (spheres, capsules) and planes for 4000 steps and checks
+/// the cloth never comes closer than the thickness less `tolerance` to any of them, and
+/// reaches a round one. Projection puts a vertex exactly at the thickness: `tolerance` covers
+/// float32 rounding (1e-6 m on the CPU; GPU sqrt and division may be 2.5 ulp off, 1e-5 m).
+pub fn check_cloth_stays_out(solver: &mut dyn Solver, scene: &Scene, tolerance: f64) {
+    use crate::collide::Shape;
+    let thickness = scene.params.collision_thickness;
+    let mut touched = false;
+    for _ in 0..40 {
+        solver.step(100).expect("stable");
+        for p in solver.read_state().positions {
+            for collider in &scene.params.colliders {
+                let clearance = collider.shape.clearance(p);
+                assert!(
+                    clearance > thickness - tolerance,
+                    "{}: {clearance} from {:?} at {p} after {} steps",
+                    solver.describe(),
+                    collider.shape,
+                    solver.steps_taken()
+                );
+                if !matches!(collider.shape, Shape::Plane { .. }) {
+                    touched |= clearance < thickness + 1e-3;
+                }
+            }
+        }
+    }
+    assert!(
+        touched,
+        "{}: the cloth never reached the ball or bar",
+        solver.describe()
+    );
+}
+
+/// Steps [`curtain_and_moving_ball`] for 3000 steps and checks the cloth stays out of the
+/// kinematic ball where its script puts it (within `tolerance`, as in
+/// [`check_cloth_stays_out`]) and that the ball, travelling from z = -0.3 past the curtain at
+/// z = 0, drags cloth more than 0.1 m along.
+pub fn check_curtain_pushed(solver: &mut dyn Solver, scene: &Scene, tolerance: f64) {
+    let ball = scene.params.colliders[0];
+    let thickness = scene.params.collision_thickness;
+    let mut pushed: f64 = 0.0;
+    for _ in 0..30 {
+        solver.step(100).expect("stable");
+        let t = solver.steps_taken() as f64 * scene.params.dt;
+        let ball_now = ball.at(t).shape;
+        for p in solver.read_state().positions {
+            let clearance = ball_now.clearance(p);
+            assert!(
+                clearance > thickness - tolerance,
+                "{} at t = {t}: {clearance}",
+                solver.describe()
+            );
+            pushed = pushed.max(p.z);
+        }
+    }
+    assert!(
+        pushed > 0.1,
+        "{}: the curtain moved only {pushed} m",
+        solver.describe()
+    );
+}

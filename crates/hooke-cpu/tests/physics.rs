@@ -418,81 +418,21 @@ fn avx2_and_portable_kernels_are_bit_identical() {
 }
 
 /// The closest any vertex comes to the surfaces of the ball and the ground (negative: inside).
-/// Smallest clearance of the cloth from the round colliders (spheres, capsules) and from the
-/// planes.
-fn clearances(scene: &Scene, positions: &[DVec3]) -> (f64, f64) {
-    use hooke_core::collide::Shape;
-    let closest = |round: bool| {
-        let colliders = scene.params.colliders.iter();
-        colliders
-            .filter(|c| !matches!(c.shape, Shape::Plane { .. }) == round)
-            .flat_map(|c| positions.iter().map(|p| c.shape.clearance(*p)))
-            .fold(f64::INFINITY, f64::min)
-    };
-    (closest(true), closest(false))
-}
-
 #[test]
 fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_or_the_ground() {
-    for scene in [
-        hooke_core::test_scenes::cloth_onto_ball(),
-        hooke_core::test_scenes::cloth_onto_capsule(),
-    ] {
-        check_cloth_stays_out(&scene);
-    }
-}
-
-fn check_cloth_stays_out(scene: &Scene) {
-    let thickness = scene.params.collision_thickness;
-    for mut solver in all_solvers(&scene.model, &scene.params) {
-        let mut touched = false;
-        for _ in 0..40 {
-            solver.step(100).expect("stable");
-            let (ball, ground) = clearances(scene, &solver.read_state().positions);
-            // Projection puts a vertex exactly at the thickness; f32 rounding of positions of
-            // order 1 m is below 1e-6 m.
-            assert!(
-                ball > thickness - 1e-6 && ground > thickness - 1e-6,
-                "{}: {ball} {ground}",
-                solver.describe()
-            );
-            touched |= ball < thickness + 1e-3;
+    use hooke_core::test_scenes::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
+    for scene in [cloth_onto_ball(), cloth_onto_capsule()] {
+        for mut solver in all_solvers(&scene.model, &scene.params) {
+            check_cloth_stays_out(solver.as_mut(), &scene, 1e-6);
         }
-        assert!(
-            touched,
-            "{}: the cloth never reached the ball",
-            solver.describe()
-        );
     }
 }
 
 #[test]
 fn a_moving_ball_pushes_through_a_curtain_without_entering_it() {
     let scene = hooke_core::test_scenes::curtain_and_moving_ball();
-    let ball = scene.params.colliders[0];
-    let thickness = scene.params.collision_thickness;
     for mut solver in all_solvers(&scene.model, &scene.params) {
-        let mut pushed: f64 = 0.0;
-        for _ in 0..30 {
-            solver.step(100).expect("stable");
-            let t = solver.steps_taken() as f64 * scene.params.dt;
-            let ball_now = ball.at(t).shape;
-            for p in solver.read_state().positions {
-                let clearance = ball_now.clearance(p);
-                assert!(
-                    clearance > thickness - 1e-6,
-                    "{} at t = {t}: {clearance}",
-                    solver.describe()
-                );
-                pushed = pushed.max(p.z);
-            }
-        }
-        // The ball travels from z = -0.3 to past the curtain at z = 0: it must drag cloth along.
-        assert!(
-            pushed > 0.1,
-            "{}: the curtain moved only {pushed} m",
-            solver.describe()
-        );
+        hooke_core::test_scenes::check_curtain_pushed(solver.as_mut(), &scene, 1e-6);
     }
 }
 

@@ -323,50 +323,19 @@ fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
 
 #[test]
 fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
-    use hooke_core::collide::Shape;
+    use hooke_core::test_scenes::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
     let Some(context) = context() else { return };
     for (scene, method) in [
+        (cloth_onto_ball(), GpuMethod::Gather),
         (
-            hooke_core::test_scenes::cloth_onto_ball(),
-            GpuMethod::Gather,
-        ),
-        (
-            hooke_core::test_scenes::cloth_onto_ball(),
+            cloth_onto_ball(),
             GpuMethod::Scatter(Accumulation::Incidence),
         ),
-        (
-            hooke_core::test_scenes::cloth_onto_capsule(),
-            GpuMethod::Gather,
-        ),
+        (cloth_onto_capsule(), GpuMethod::Gather),
     ] {
-        let thickness = scene.params.collision_thickness;
         let mut solver = GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method)
             .expect("solver");
-        let mut touched = false;
-        for _ in 0..40 {
-            solver.step(100).expect("stable");
-            for p in solver.read_state().positions {
-                for collider in &scene.params.colliders {
-                    let clearance = collider.shape.clearance(p);
-                    // As on the CPU; GPU sqrt and division may be 2.5 ulp off, still far below 1e-5 m.
-                    assert!(
-                        clearance > thickness - 1e-5,
-                        "{}: {clearance} from {:?} at {p} after {} steps",
-                        method.name(),
-                        collider.shape,
-                        solver.steps_taken()
-                    );
-                    if !matches!(collider.shape, Shape::Plane { .. }) {
-                        touched |= clearance < thickness + 1e-3;
-                    }
-                }
-            }
-        }
-        assert!(
-            touched,
-            "{}: the cloth never reached the ball or bar",
-            method.name()
-        );
+        check_cloth_stays_out(&mut solver, &scene, 1e-5);
     }
 }
 
@@ -374,23 +343,9 @@ fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
 fn a_moving_ball_pushes_through_a_curtain_on_the_gpu() {
     let Some(context) = context() else { return };
     let scene = hooke_core::test_scenes::curtain_and_moving_ball();
-    let ball = scene.params.colliders[0];
-    let thickness = scene.params.collision_thickness;
     let mut solver =
         GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
-    let mut pushed: f64 = 0.0;
-    for _ in 0..30 {
-        solver.step(100).expect("stable");
-        let t = solver.steps_taken() as f64 * scene.params.dt;
-        let ball_now = ball.at(t).shape;
-        for p in solver.read_state().positions {
-            let clearance = ball_now.clearance(p);
-            // float32 time and position on the GPU: within 1e-5 m of the CPU's rule.
-            assert!(clearance > thickness - 1e-5, "t = {t}: {clearance}");
-            pushed = pushed.max(p.z);
-        }
-    }
-    assert!(pushed > 0.1, "the curtain moved only {pushed} m");
+    hooke_core::test_scenes::check_curtain_pushed(&mut solver, &scene, 1e-5);
 }
 
 #[test]
