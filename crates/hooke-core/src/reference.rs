@@ -104,9 +104,8 @@ impl ReferenceSolver {
 fn resolve_self_collisions(model: &Model, state: &mut State, config: &SelfCollision) {
     let rounded: Vec<Vec3> = state.positions.iter().map(|p| p.as_vec3()).collect();
     let mut moved = rounded.clone();
-    let mut deltas = vec![Vec3::ZERO; moved.len()];
     let weights = selfcollide::inverse_masses(model);
-    selfcollide::resolve(&mut moved, &mut deltas, &weights, &model.adjacency, config);
+    selfcollide::resolve(&mut moved, &weights, &model.adjacency, config);
     for (p, (after, before)) in state.positions.iter_mut().zip(moved.iter().zip(&rounded)) {
         *p += (*after - *before).as_dvec3();
     }

@@ -154,17 +154,19 @@ fn window_of(j: usize, window: u32, keys: &[u32]) -> impl Iterator<Item = usize>
     below.chain(above)
 }
 
-/// Resolves self-collisions in place: `K` passes, each moving `positions` (and `deltas`, the
-/// step's motion) of vertices closer than `config.distance` to an unjoined window neighbour.
-/// `weights` are the inverse masses (any common scale; zero for a pinned vertex).
+/// Resolves self-collisions in place: `K` passes, each moving the `positions` of vertices
+/// closer than `config.distance` to an unjoined window neighbour. `weights` are the inverse
+/// masses (any common scale; zero for a pinned vertex). Returns every move in the order made
+/// (a vertex appears once per grid that moved it), for callers that keep the step's motion
+/// or a copy of the positions elsewhere: most vertices do not move.
 pub fn resolve(
     positions: &mut [Vec3],
-    deltas: &mut [Vec3],
     weights: &[f32],
     adjacency: &Adjacency,
     config: &SelfCollision,
-) {
+) -> Vec<(u32, Vec3)> {
     let distance = config.distance as f32;
+    let mut all_moves = Vec::new();
     for k in 0..config.grids {
         let (keys, order) = sorted_for_grid(positions, config, k);
         let current = &*positions;
@@ -200,11 +202,12 @@ pub fn resolve(
                 (correction != Vec3::ZERO).then_some((p, correction))
             })
             .collect();
-        for (p, c) in moves {
+        for &(p, c) in &moves {
             positions[p as usize] += c;
-            deltas[p as usize] += c;
         }
+        all_moves.extend(moves);
     }
+    all_moves
 }
 
 /// Two vertices in one window: `d` runs from `q` to `p`; `share` is `p`'s part of the push.
@@ -430,8 +433,10 @@ mod tests {
             window: 3,
         };
         let mut moved = points.clone();
-        let mut deltas = vec![Vec3::ZERO; 4];
-        resolve(&mut moved, &mut deltas, &weights, &adjacency, &config);
+        let mut deltas = [Vec3::ZERO; 4];
+        for (v, c) in resolve(&mut moved, &weights, &adjacency, &config) {
+            deltas[v as usize] += c;
+        }
         // 0 and 1 share the push equally; 1 also leaves pinned 2 by itself.
         assert_eq!(moved[2], points[2]);
         assert!(moved[0].distance(moved[1]) > 0.035);

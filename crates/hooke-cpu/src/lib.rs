@@ -347,23 +347,23 @@ impl CpuSolver {
             return;
         };
         let internal = &self.numbering.internal;
-        let read = |soa: &Soa| -> Vec<Vec3> {
-            internal
-                .iter()
-                .map(|&k| Vec3::from_array(soa.get(k as usize)))
-                .collect()
-        };
-        let (mut positions, mut deltas) = (read(&self.next), read(&self.delta));
-        selfcollide::resolve(
+        let mut positions: Vec<Vec3> = internal
+            .iter()
+            .map(|&k| Vec3::from_array(self.next.get(k as usize)))
+            .collect();
+        let moves = selfcollide::resolve(
             &mut positions,
-            &mut deltas,
             &self.inverse_masses,
             &self.model.adjacency,
             &config,
         );
-        for (v, &k) in internal.iter().enumerate() {
-            self.next.set(k as usize, positions[v].to_array());
-            self.delta.set(k as usize, deltas[v].to_array());
+        // Only moved vertices are written back; each move shifts the step's motion too.
+        for (v, c) in moves {
+            let k = internal[v as usize] as usize;
+            self.next
+                .set(k, (Vec3::from_array(self.next.get(k)) + c).to_array());
+            self.delta
+                .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
         }
     }
 

@@ -253,12 +253,9 @@ fn measure_setting(scene: &Scene, samples: &[Sample], config: &SelfCollision) ->
         let found = selfcollide::approximate_pairs(&sample.positions, adjacency, config);
         exact_pairs += sample.exact.len();
         missed += selfcollide::missed_share(&sample.exact, &found) * sample.exact.len() as f64;
-        let (mut positions, mut deltas) = (
-            sample.positions.clone(),
-            vec![Vec3::ZERO; sample.positions.len()],
-        );
+        let mut positions = sample.positions.clone();
         let start = Instant::now();
-        selfcollide::resolve(&mut positions, &mut deltas, &weights, adjacency, config);
+        selfcollide::resolve(&mut positions, &weights, adjacency, config);
         costs.push(start.elapsed().as_secs_f64() * 1e3);
         occupancy.push(selfcollide::vertices_per_cell(&sample.positions, config));
     }
