@@ -63,6 +63,13 @@ pub struct SimParams {
     pub self_collision: Option<SelfCollision>,
 }
 
+impl SimParams {
+    /// True if a step has collision work: colliders or self-collision.
+    pub fn collides(&self) -> bool {
+        !self.colliders.is_empty() || self.self_collision.is_some()
+    }
+}
+
 impl Default for SimParams {
     fn default() -> Self {
         Self {

@@ -277,8 +277,7 @@ fn measure(
     let bytes_per_step = solver.bytes_per_step();
     let bandwidth = copy_bandwidth(bytes_per_step, copy_pool);
     let method = solver.options().method;
-    let collides = !scene.params.colliders.is_empty() || scene.params.self_collision.is_some();
-    let medians = PhaseMedians::of(&phases, method == Method::Scatter, collides);
+    let medians = PhaseMedians::of(&phases, method == Method::Scatter, scene.params.collides());
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
@@ -322,8 +321,8 @@ fn measure_gpu(
         TimingSource::WallClock => "wall clock",
     };
     let method = solver.method();
-    let collides = !scene.params.colliders.is_empty() || scene.params.self_collision.is_some();
-    let medians = PhaseMedians::of(&phases, matches!(method, GpuMethod::Scatter(_)), collides);
+    let accumulates = matches!(method, GpuMethod::Scatter(_));
+    let medians = PhaseMedians::of(&phases, accumulates, scene.params.collides());
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),

@@ -306,12 +306,17 @@ impl SceneRenderer {
                 _ => Vec::new(),
             })
             .collect();
-        if !capsules.is_empty() {
+        // Called every frame: the buffer is made once per capsule count and rewritten after.
+        if !capsules.is_empty() && capsules.len() as u32 == 2 * self.capsule_count {
+            context
+                .queue
+                .write_buffer(&self.capsules, 0, bytemuck::cast_slice(&capsules));
+        } else if !capsules.is_empty() {
             self.capsules = storage(
                 context,
                 "collider capsules",
                 &capsules,
-                wgpu::BufferUsages::empty(),
+                wgpu::BufferUsages::COPY_DST,
             );
         }
         self.capsule_count = capsules.len() as u32 / 2;
