@@ -215,6 +215,8 @@ struct CollidePass {
     /// By current position buffer.
     groups: [wgpu::BindGroup; 2],
     colliders: wgpu::Buffer,
+    /// Colliders in `colliders`.
+    count: u32,
     keyframes: wgpu::Buffer,
     balls: Option<BallsPass>,
 }
@@ -241,7 +243,7 @@ impl CollidePass {
         gpu::dispatch_in(&mut pass, &self.pipeline, &self.groups[current], vertices);
         if let Some(balls) = &self.balls {
             // One workgroup per collider.
-            let colliders = (self.colliders.size() / 64) as u32;
+            let colliders = self.count;
             gpu::dispatch_in(
                 &mut pass,
                 &balls.advance,
@@ -1745,6 +1747,7 @@ impl GpuSolver {
             pipeline,
             groups,
             colliders,
+            count: params.colliders.len() as u32,
             keyframes,
             balls,
         });
