@@ -9,10 +9,10 @@ pub fn load_scene(path: &Path, allow_unstable: bool) -> anyhow::Result<Scene> {
     for warning in &scene.mesh_warnings {
         eprintln!("warning: {}: {warning}", path.display());
     }
-    if scene.params.dt > scene.max_stable_dt {
+    if scene.material.dt > scene.max_stable_dt {
         eprintln!(
             "warning: dt {:.3e} s exceeds the stability bound {:.3e} s; the run may blow up",
-            scene.params.dt, scene.max_stable_dt
+            scene.material.dt, scene.max_stable_dt
         );
     }
     Ok(scene)

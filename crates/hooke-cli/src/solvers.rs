@@ -2,11 +2,11 @@
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use hooke_core::reference::ReferenceSolver;
-use hooke_core::{Model, SimParams, Solver};
+use hooke::{Simulation, SolverChoice};
+use hooke_core::scene::Scene;
 use hooke_cpu::layout::VertexOrder;
-use hooke_cpu::{CpuOptions, CpuSolver, Method};
-use hooke_gpu::{Accumulation, GpuContext, GpuMethod, GpuSolver};
+use hooke_cpu::{CpuOptions, Method};
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Backend {
@@ -104,30 +104,32 @@ pub struct SolverArgs {
 }
 
 impl SolverArgs {
-    pub fn build(&self, model: &Model, params: &SimParams) -> anyhow::Result<Box<dyn Solver>> {
-        Ok(match self.backend.unwrap_or(Backend::Cpu) {
-            Backend::Reference => Box::new(ReferenceSolver::new(model, params)),
-            Backend::Cpu => {
-                let options = CpuOptions {
-                    method: self.method.unwrap_or(MethodArg::Gather).into(),
-                    threads: self.threads,
-                    order: self.order.into(),
-                    ..Default::default()
-                };
-                Box::new(CpuSolver::new(model, params, options).context("starting the cpu solver")?)
-            }
-            Backend::Gpu => {
-                let context = open_gpu()?;
-                let method = match self.method.unwrap_or(MethodArg::Scatter) {
-                    MethodArg::Gather => GpuMethod::Gather,
-                    MethodArg::Scatter => GpuMethod::Scatter(self.accumulation.into()),
-                };
-                Box::new(
-                    GpuSolver::new(context, model, params, method)
-                        .context("starting the gpu solver")?,
-                )
-            }
-        })
+    /// The solver the flags ask for; `default` is the backend when `--backend` is not given.
+    pub fn choice(&self, default: Backend) -> SolverChoice {
+        match self.backend.unwrap_or(default) {
+            Backend::Reference => SolverChoice::Reference,
+            Backend::Cpu => SolverChoice::Cpu(CpuOptions {
+                method: self.method.unwrap_or(MethodArg::Gather).into(),
+                threads: self.threads,
+                order: self.order.into(),
+                ..Default::default()
+            }),
+            Backend::Gpu => SolverChoice::Gpu(match self.method.unwrap_or(MethodArg::Scatter) {
+                MethodArg::Gather => GpuMethod::Gather,
+                MethodArg::Scatter => GpuMethod::Scatter(self.accumulation.into()),
+            }),
+        }
+    }
+
+    /// A simulation of `scene` on the solver the flags ask for (cpu unless `--backend`).
+    pub fn build(&self, scene: &Scene) -> anyhow::Result<Simulation> {
+        let choice = self.choice(Backend::Cpu);
+        let gpu = match choice {
+            SolverChoice::Gpu(_) => Some(open_gpu()?),
+            _ => None,
+        };
+        Simulation::from_scene(scene, choice, gpu)
+            .with_context(|| format!("starting the {} solver", choice.name()))
     }
 }
 

@@ -491,12 +491,19 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
     }
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
-    // The GPU solver (drawn from its own buffers) and the CPU one (uploaded each frame); and
-    // the Fig. 4 scene, whose dynamic balls are drawn from GPU memory too.
+    // The GPU solver (drawn from its own buffers) and the CPU one (uploaded each frame), each
+    // with a scripted drag of the cloth and a stiffness, damping and dt change; and the Fig. 4
+    // scene, whose dynamic balls are drawn from GPU memory too.
     let fig4 = shipped_scene("wind-and-balls.toml");
-    for (scene, backend) in [(&scene, "gpu"), (&scene, "cpu"), (&fig4, "gpu")] {
+    for (scene, backend, scripted) in [
+        (&scene, "gpu", true),
+        (&scene, "cpu", true),
+        (&fig4, "gpu", false),
+    ] {
         let shot = dir.path().join(format!("viewer-{backend}.png"));
-        let result = Command::new("xvfb-run")
+        let frames = if scripted { "60" } else { "30" };
+        let mut command = Command::new("xvfb-run");
+        command
             .args([
                 "-a",
                 "-s",
@@ -507,21 +514,44 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
             .args([
                 path_str(scene),
                 "--frames",
-                "30",
+                frames,
                 "--size",
                 "640x400",
                 "--backend",
                 backend,
             ])
-            .args(["--screenshot", path_str(&shot)])
-            .output()
-            .expect("xvfb-run runs");
+            .args(["--screenshot", path_str(&shot)]);
+        if scripted {
+            command.args(["--script", "drag"]);
+        }
+        let result = command.output().expect("xvfb-run runs");
         let stderr = text(&result.stderr);
         assert!(result.status.success(), "{backend}: {stderr}");
         assert!(
-            stderr.contains("30 frames") && stderr.contains("0 blocking GPU read-backs"),
+            stderr.contains(&format!("viewer: {frames} frames")),
             "{stderr}"
         );
+        // Nothing in the frame loop waits for the GPU or compiles a pipeline: not a drag, not
+        // a stiffness, damping or dt change.
+        assert_eq!(
+            frame_loop_count(&stderr, "blocking GPU read-backs"),
+            0,
+            "{backend}: {stderr}"
+        );
+        assert_eq!(
+            frame_loop_count(&stderr, "pipelines created"),
+            0,
+            "{backend}: {stderr}"
+        );
+        if scripted {
+            assert!(
+                stderr.contains("scripted drag: grabbed vertex")
+                    && stderr.contains(
+                        "30 moves, stiffness, damping and dt changed: true, released: true"
+                    ),
+                "{backend}: the scripted drag did not run through: {stderr}"
+            );
+        }
         let image = hooke_gpu::render::Image::load_png(&shot).expect("screenshot");
         assert_eq!(image.size, [640, 400]);
         // The checker's red squares and the pin markers: clearly red pixels mean cloth in view.
@@ -537,6 +567,27 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
             "{backend}: only {red} cloth pixels"
         );
     }
+}
+
+/// The number the viewer's closing line gives before `what` ("in the frame loop: N what").
+fn frame_loop_count(stderr: &str, what: &str) -> u64 {
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("in the frame loop:"))
+        .unwrap_or_else(|| panic!("no frame-loop line in {stderr}"));
+    let before = line
+        .split(what)
+        .next()
+        .filter(|b| b.len() < line.len())
+        .unwrap_or_else(|| panic!("no '{what}' in {line}"));
+    let number = before
+        .trim_end()
+        .rsplit([' ', ':', ','])
+        .next()
+        .unwrap_or_default();
+    number
+        .parse()
+        .unwrap_or_else(|_| panic!("'{number}' before '{what}' in {line} is not a count"))
 }
 
 fn shipped_scene(name: &str) -> PathBuf {
@@ -599,11 +650,7 @@ fn paper_fig3_and_fig4_scenes_run_and_render() {
 #[test]
 fn selfcollision_study_prints_missed_pairs_and_cost() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let scene = write(
-        dir.path(),
-        "fold.toml",
-        hooke_core::test_scenes::FOLDING_CLOTH,
-    );
+    let scene = write(dir.path(), "fold.toml", hooke_testkit::FOLDING_CLOTH);
     let result = hooke(&[
         "selfcollision-study",
         path_str(&scene),

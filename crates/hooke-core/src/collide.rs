@@ -22,6 +22,8 @@
 
 use glam::DVec3;
 
+use crate::BallPush;
+
 /// A collider's geometry.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Shape {
@@ -272,34 +274,25 @@ pub fn resolve_and_report(
     p
 }
 
-/// New collider settings for a running simulation: dynamic balls keep where they are and how
-/// they move when the list still has the same shapes in the same order; otherwise it restarts.
-pub fn carry_over(running: &[Collider], settings: &[Collider]) -> Vec<Collider> {
-    if !same_kinds(running, settings) {
-        return settings.to_vec();
+/// Sets each dynamic ball's applied force to the one its setting gives plus the pushes on it.
+pub fn apply_pushes(running: &mut [Collider], settings: &[Collider], pushes: &[BallPush]) {
+    for (k, (now, setting)) in running.iter_mut().zip(settings).enumerate() {
+        if let (Some(dynamics), Some(set)) = (now.dynamics.as_mut(), setting.dynamics) {
+            dynamics.force = pushes
+                .iter()
+                .filter(|p| p.collider == k)
+                .fold(set.force, |total, p| total + p.force);
+        }
     }
-    running
-        .iter()
-        .zip(settings)
-        .map(|(now, new)| match (now.shape, new.shape, new.dynamics) {
-            (Shape::Sphere { center, .. }, Shape::Sphere { radius, .. }, Some(_)) => Collider {
-                shape: Shape::Sphere { center, radius },
-                velocity: now.velocity,
-                spin: now.spin,
-                ..*new
-            },
-            _ => *new,
-        })
-        .collect()
 }
 
-/// True if both lists hold the same shapes in the same order, dynamic in the same places.
-pub fn same_kinds(a: &[Collider], b: &[Collider]) -> bool {
-    a.len() == b.len()
-        && a.iter().zip(b).all(|(a, b)| {
-            std::mem::discriminant(&a.shape) == std::mem::discriminant(&b.shape)
-                && a.dynamics.is_some() == b.dynamics.is_some()
-        })
+/// Puts the dynamic balls where `saved` has them, moving as they moved there (a restore).
+pub fn restore_balls(running: &mut [Collider], saved: &[Collider]) {
+    for (now, then) in running.iter_mut().zip(saved) {
+        if now.dynamics.is_some() {
+            (now.shape, now.velocity, now.spin) = (then.shape, then.velocity, then.spin);
+        }
+    }
 }
 
 /// The colliders placed at time `t` (scripted ones moved, dynamic ones where they are).

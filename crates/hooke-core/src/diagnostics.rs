@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 
-use crate::{Model, SimError, SimParams, State};
+use crate::{Material, Model, SimError, State};
 
 /// Energies in joules. Kinetic energy uses the Verlet velocity `(x - x_prev)/dt`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -20,16 +20,17 @@ impl Energy {
     }
 }
 
-pub fn energy(model: &Model, state: &State, params: &SimParams) -> Energy {
+pub fn energy(model: &Model, state: &State, material: &Material) -> Energy {
     let mut energy = Energy::default();
     for (i, mass) in model.masses.iter().enumerate() {
-        energy.kinetic += 0.5 * mass * state.velocity(i, params.dt).length_squared();
-        energy.gravitational -= mass * params.gravity.dot(state.positions[i]);
+        energy.kinetic += 0.5 * mass * state.velocity(i, material.dt).length_squared();
+        energy.gravitational -= mass * material.gravity.dot(state.positions[i]);
     }
     for (s, [a, b]) in model.spring_ends.iter().enumerate() {
         let length = state.positions[*a as usize].distance(state.positions[*b as usize]);
         let extension = length - model.rest_lengths[s];
-        energy.elastic += 0.5 * model.stiffnesses[s] * extension * extension;
+        energy.elastic +=
+            0.5 * model.stiffness(s, material.stiffness_scale) * extension * extension;
     }
     energy
 }
@@ -89,7 +90,7 @@ pub fn check_health(model: &Model, positions: &[DVec3], step: u64) -> Result<(),
 pub fn pin_reactions(
     model: &Model,
     positions: &[DVec3],
-    params: &SimParams,
+    material: &Material,
 ) -> Vec<(usize, DVec3)> {
     let mut spring_force = vec![DVec3::ZERO; model.vertex_count()];
     for (s, [a, b]) in model.spring_ends.iter().enumerate() {
@@ -97,14 +98,14 @@ pub fn pin_reactions(
             positions[*a as usize],
             positions[*b as usize],
             model.rest_lengths[s],
-            model.stiffnesses[s],
+            model.stiffness(s, material.stiffness_scale),
         );
         spring_force[*a as usize] += force;
         spring_force[*b as usize] -= force;
     }
     (0..model.vertex_count())
         .filter(|i| model.pinned[*i])
-        .map(|i| (i, -(spring_force[i] + model.masses[i] * params.gravity)))
+        .map(|i| (i, -(spring_force[i] + model.masses[i] * material.gravity)))
         .collect()
 }
 

@@ -1,23 +1,29 @@
-//! External forces of [`SimParams`] in float64 (the formulas are documented in [`crate::params`]).
+//! External forces in float64 (the formulas are documented in [`crate::control`]).
 
 use glam::DVec3;
 
-use crate::{Model, SimParams, State};
+use crate::{Control, Material, Model, State};
 
 /// Adds gravity, point forces, drags and wind to `forces` (N), one entry per vertex.
-pub fn add_external_forces(model: &Model, state: &State, params: &SimParams, forces: &mut [DVec3]) {
+pub fn add_external_forces(
+    model: &Model,
+    state: &State,
+    material: &Material,
+    control: &Control,
+    forces: &mut [DVec3],
+) {
     for (force, mass) in forces.iter_mut().zip(&model.masses) {
-        *force += *mass * params.gravity;
+        *force += *mass * material.gravity;
     }
-    for point in &params.point_forces {
+    for point in &control.point_forces {
         forces[point.vertex as usize] += point.force;
     }
-    for drag in &params.drags {
+    for drag in &control.drags {
         for &v in &drag.vertices {
             forces[v as usize] += drag.stiffness * (drag.target - state.positions[v as usize]);
         }
     }
-    if let Some(wind) = params.wind {
+    if let Some(wind) = control.wind {
         for t in &model.triangles {
             let [a, b, c] = t.map(|i| i as usize);
             let [pa, pb, pc] = [a, b, c].map(|i| state.positions[i]);
@@ -27,9 +33,9 @@ pub fn add_external_forces(model: &Model, state: &State, params: &SimParams, for
                 continue;
             }
             let normal = cross / twice_area;
-            let velocity = (state.velocity(a, params.dt)
-                + state.velocity(b, params.dt)
-                + state.velocity(c, params.dt))
+            let velocity = (state.velocity(a, material.dt)
+                + state.velocity(b, material.dt)
+                + state.velocity(c, material.dt))
                 / 3.0;
             let relative = wind.velocity - velocity;
             let force = wind.coefficient * 0.5 * twice_area * relative.dot(normal) * normal;

@@ -3,21 +3,21 @@
 
 pub mod atomic_file;
 pub mod collide;
+mod control;
 pub mod diagnostics;
 pub mod forces;
+mod material;
 pub mod mesh;
 mod model;
-mod params;
 pub mod reference;
 pub mod scene;
 pub mod selfcollide;
 mod solver;
 pub mod stability;
 mod state;
-#[doc(hidden)]
-pub mod test_scenes;
 
-pub use model::{Adjacency, MassModel, Model, ModelError, ModelOptions, StiffnessModel};
-pub use params::{Drag, PointForce, SimParams, Wind};
-pub use solver::{PhaseTimes, SimError, Solver};
+pub use control::{BallPush, Control, Drag, PointForce, Wind};
+pub use material::Material;
+pub use model::{Adjacency, Collision, MassModel, Model, ModelError, ModelOptions, StiffnessModel};
+pub use solver::{PhaseTimes, SimError, Snapshot, Solver, TimingSource};
 pub use state::State;

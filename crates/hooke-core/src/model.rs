@@ -1,10 +1,13 @@
 //! The fixed part of a mass-spring system (paper Section 2): springs, masses, pins, adjacency.
 //!
-//! Everything here stays constant while stepping; what changes lives in [`crate::State`].
+//! Everything here stays constant while stepping, colliders' shapes and the self-collision
+//! set-up included; what changes lives in [`crate::State`].
 
 use glam::DVec3;
 
+use crate::collide::Collider;
 use crate::mesh::Mesh;
+use crate::selfcollide::SelfCollision;
 
 /// How spring stiffnesses `D_ij` (paper eq. 1) are assigned.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,6 +109,27 @@ pub struct Model {
     pub pinned: Vec<bool>,
     /// Vertex -> incident springs.
     pub adjacency: Adjacency,
+    /// Colliders and self-collision: fixed while stepping.
+    pub collision: Collision,
+}
+
+/// What the cloth collides with, fixed while stepping (see [`crate::collide`] and
+/// [`crate::selfcollide`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Collision {
+    /// Spheres, planes and capsules the cloth cannot enter, as they start.
+    pub colliders: Vec<Collider>,
+    /// How far from a collider's surface the cloth is held, m (its half thickness).
+    pub thickness: f64,
+    /// Approximate self-collision by binning; off when `None`.
+    pub self_collision: Option<SelfCollision>,
+}
+
+impl Collision {
+    /// True if a step has collision work: colliders or self-collision.
+    pub fn any(&self) -> bool {
+        !self.colliders.is_empty() || self.self_collision.is_some()
+    }
 }
 
 /// A model that cannot be simulated.
@@ -200,7 +224,22 @@ impl Model {
             masses,
             pinned,
             adjacency,
+            collision: Collision::default(),
         })
+    }
+
+    /// The stiffness of spring `s` under a material's stiffness scale, N/m.
+    pub fn stiffness(&self, spring: usize, scale: f64) -> f64 {
+        self.stiffnesses[spring] * scale
+    }
+
+    /// This model with every stiffness times `scale` (what a solver steps under a material).
+    pub fn with_stiffness_scale(&self, scale: f64) -> Model {
+        let mut scaled = self.clone();
+        for k in &mut scaled.stiffnesses {
+            *k *= scale;
+        }
+        scaled
     }
 
     pub fn vertex_count(&self) -> usize {

@@ -7,17 +7,21 @@
 use glam::{DVec3, Vec3};
 
 use crate::collide::{
-    Collider, advance_balls, carry_over, first_non_finite_ball, placed, resolve_and_report,
+    Collider, advance_balls, apply_pushes, first_non_finite_ball, placed, resolve_and_report,
+    restore_balls,
 };
 use crate::diagnostics::spring_force_on_a;
 use crate::forces::add_external_forces;
 use crate::selfcollide::{self, SelfCollision};
-use crate::{Model, SimError, SimParams, Solver, State};
+use crate::solver::{PhaseTimes, Snapshot, TimingSource};
+use crate::{Control, Material, Model, SimError, Solver, State};
 
 #[derive(Debug)]
 pub struct ReferenceSolver {
     model: Model,
-    params: SimParams,
+    material: Material,
+    control: Control,
+    self_collision: Option<SelfCollision>,
     state: State,
     forces: Vec<DVec3>,
     /// Colliders as they are now (dynamic balls move; scripted ones are placed by time).
@@ -26,33 +30,35 @@ pub struct ReferenceSolver {
 }
 
 impl ReferenceSolver {
-    pub fn new(model: &Model, params: &SimParams) -> Self {
+    pub fn new(model: &Model, material: &Material) -> Self {
         Self {
             state: State::at_rest(model.initial_positions.clone()),
             forces: vec![DVec3::ZERO; model.vertex_count()],
             model: model.clone(),
-            colliders: params.colliders.clone(),
-            params: params.clone(),
+            colliders: model.collision.colliders.clone(),
+            self_collision: model.collision.self_collision,
+            material: *material,
+            control: Control::default(),
             steps_taken: 0,
         }
     }
 
     fn step_once(&mut self) -> Result<(), SimError> {
-        let (model, params, state) = (&self.model, &self.params, &mut self.state);
+        let (model, material, state) = (&self.model, &self.material, &mut self.state);
         self.forces.fill(DVec3::ZERO);
-        add_external_forces(model, state, params, &mut self.forces);
+        add_external_forces(model, state, material, &self.control, &mut self.forces);
         for (s, [a, b]) in model.spring_ends.iter().enumerate() {
             let (a, b) = (*a as usize, *b as usize);
             let force = spring_force_on_a(
                 state.positions[a],
                 state.positions[b],
                 model.rest_lengths[s],
-                model.stiffnesses[s],
+                model.stiffness(s, material.stiffness_scale),
             );
             self.forces[a] += force;
             self.forces[b] -= force;
         }
-        let dt = params.dt;
+        let dt = material.dt;
         self.steps_taken += 1;
         // Colliders are placed where they are at the end of this step.
         let t = self.steps_taken as f64 * dt;
@@ -63,12 +69,12 @@ impl ReferenceSolver {
             let next = if model.pinned[i] {
                 x
             } else {
-                let total = self.forces[i] - params.damping * (x - x_previous) / dt;
+                let total = self.forces[i] - material.damping * (x - x_previous) / dt;
                 let moved = total / model.masses[i] * dt * dt + 2.0 * x - x_previous;
                 let mass = model.masses[i];
                 resolve_and_report(
                     &self.colliders,
-                    params.collision_thickness,
+                    model.collision.thickness,
                     t,
                     dt,
                     x,
@@ -85,14 +91,14 @@ impl ReferenceSolver {
             state.previous_positions[i] = x;
             state.positions[i] = next;
         }
-        advance_balls(&mut self.colliders, &pushes, params.gravity, dt, t);
+        advance_balls(&mut self.colliders, &pushes, material.gravity, dt, t);
         if let Some(collider) = first_non_finite_ball(&self.colliders) {
             return Err(SimError::BallNonFinite {
                 step: self.steps_taken,
                 collider,
             });
         }
-        if let Some(config) = &params.self_collision {
+        if let Some(config) = &self.self_collision {
             resolve_self_collisions(model, state, config);
         }
         Ok(())
@@ -116,9 +122,24 @@ impl Solver for ReferenceSolver {
         "reference (f64, 1 thread)".to_owned()
     }
 
-    fn set_params(&mut self, params: &SimParams) {
-        self.colliders = carry_over(&self.colliders, &params.colliders);
-        self.params = params.clone();
+    fn set_material(&mut self, material: &Material) -> Result<(), SimError> {
+        self.material = *material;
+        Ok(())
+    }
+
+    fn set_control(&mut self, control: &Control) -> Result<(), SimError> {
+        apply_pushes(
+            &mut self.colliders,
+            &self.model.collision.colliders,
+            &control.ball_pushes,
+        );
+        self.control = control.clone();
+        Ok(())
+    }
+
+    fn set_self_collision(&mut self, config: Option<SelfCollision>) -> Result<(), SimError> {
+        self.self_collision = config;
+        Ok(())
     }
 
     fn step(&mut self, steps: u32) -> Result<(), SimError> {
@@ -128,8 +149,19 @@ impl Solver for ReferenceSolver {
         Ok(())
     }
 
-    fn read_state(&self) -> State {
-        self.state.clone()
+    /// Phases are not separated in this solver: the whole step counts as force calculation.
+    fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError> {
+        let start = std::time::Instant::now();
+        self.step_once()?;
+        let times = PhaseTimes {
+            force_calculation: start.elapsed(),
+            ..Default::default()
+        };
+        Ok((times, TimingSource::WallClock))
+    }
+
+    fn read_state(&self) -> Result<State, SimError> {
+        Ok(self.state.clone())
     }
 
     fn write_state(&mut self, state: &State) {
@@ -140,7 +172,17 @@ impl Solver for ReferenceSolver {
         self.steps_taken
     }
 
-    fn colliders(&self) -> Vec<Collider> {
-        placed(&self.colliders, self.steps_taken as f64 * self.params.dt)
+    fn colliders(&self) -> Result<Vec<Collider>, SimError> {
+        Ok(placed(
+            &self.colliders,
+            self.steps_taken as f64 * self.material.dt,
+        ))
+    }
+
+    fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError> {
+        self.state = snapshot.state.clone();
+        restore_balls(&mut self.colliders, &snapshot.colliders);
+        self.steps_taken = snapshot.steps_taken;
+        Ok(())
     }
 }

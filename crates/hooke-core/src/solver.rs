@@ -1,9 +1,10 @@
-//! What every solver (f64 reference, CPU, later GPU) offers the rest of hooke.
+//! What every solver (f64 reference, CPU, GPU) offers the rest of hooke.
 
 use std::time::Duration;
 
 use crate::collide::Collider;
-use crate::{SimParams, State};
+use crate::selfcollide::SelfCollision;
+use crate::{Control, Material, State};
 
 /// Time of each phase of one step, as the paper's Table 2 splits it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -55,28 +56,74 @@ pub enum SimError {
     Device(String),
 }
 
+/// Where per-phase times come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimingSource {
+    /// GPU timestamp queries around each pass.
+    Timestamps,
+    /// Wall clock around each phase run (and, on a GPU, submitted) alone and waited for.
+    WallClock,
+}
+
+/// Everything that changes while stepping: enough to continue a run exactly where it was.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Snapshot {
+    pub state: State,
+    /// Every collider where it is now (dynamic balls with their velocity and spin).
+    pub colliders: Vec<Collider>,
+    pub steps_taken: u64,
+}
+
 /// Advances a mass-spring system. A solver owns its state, wherever that lives (CPU or GPU
 /// memory): stepping never moves it, and reading it back is an explicit call.
+///
+/// A solver is built from a [`crate::Model`] (fixed while stepping) and a [`Material`]; per-step
+/// inputs arrive through [`Solver::set_control`]. Neither call rebuilds anything: a GPU solver
+/// writes them into buffers it already has.
 pub trait Solver: Send {
     /// A short description such as `"cpu scatter, 2 threads"`.
     fn describe(&self) -> String;
 
-    /// Takes new parameters; they hold for every following step.
-    fn set_params(&mut self, params: &SimParams);
+    /// Takes new integrator constants and stiffness scale, in place; they hold for every
+    /// following step.
+    fn set_material(&mut self, material: &Material) -> Result<(), SimError>;
+
+    /// Takes new per-step inputs (drags, point forces, wind, pushes on balls), in place.
+    fn set_control(&mut self, control: &Control) -> Result<(), SimError>;
+
+    /// Turns self-collision on with `config`, or off. A change of set-up, not a per-step input:
+    /// a GPU solver builds its self-collision pass here.
+    fn set_self_collision(&mut self, config: Option<SelfCollision>) -> Result<(), SimError>;
 
     /// Advances `steps` time steps. Fails at the first step that produced a non-finite position.
     fn step(&mut self, steps: u32) -> Result<(), SimError>;
 
+    /// One step with each phase timed (see [`PhaseTimes`]). Results equal [`Solver::step`]'s.
+    fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError>;
+
     /// Copies the current state out of the solver (a read-back for solvers whose state is remote).
-    fn read_state(&self) -> State;
+    fn read_state(&self) -> Result<State, SimError>;
 
     /// Replaces the solver's state.
     fn write_state(&mut self, state: &State);
 
-    /// Steps taken since the solver was built.
+    /// Steps taken since the solver was built (or since the snapshot it was restored from).
     fn steps_taken(&self) -> u64;
 
     /// The colliders where they are now: scripted ones moved along their paths, dynamic balls
     /// where the simulation put them (a read-back for solvers whose state is remote).
-    fn colliders(&self) -> Vec<Collider>;
+    fn colliders(&self) -> Result<Vec<Collider>, SimError>;
+
+    /// The state, the colliders and the step counter, to continue from later.
+    fn snapshot(&self) -> Result<Snapshot, SimError> {
+        Ok(Snapshot {
+            state: self.read_state()?,
+            colliders: self.colliders()?,
+            steps_taken: self.steps_taken(),
+        })
+    }
+
+    /// Continues from `snapshot`: its state, its balls' places and motion, its step counter
+    /// (which places scripted colliders).
+    fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError>;
 }

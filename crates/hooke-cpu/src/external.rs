@@ -1,4 +1,4 @@
-//! Point forces, drags and wind in float32 (models documented in `hooke_core::params`).
+//! Point forces, drags and wind in float32 (models documented in `hooke_core::control`).
 //!
 //! Gravity is folded into the integrator; everything else lands in an extra per-vertex force
 //! buffer that exists only when the parameters ask for it, so the common gravity-only step
@@ -6,7 +6,7 @@
 //! triangles in a fixed order, which keeps it deterministic for any thread count.
 
 use glam::Vec3;
-use hooke_core::{Model, SimParams};
+use hooke_core::{Control, Model};
 use rayon::prelude::*;
 
 use crate::kernels::Soa;
@@ -32,7 +32,7 @@ struct WindField {
     triangle_force: Vec<Vec3>,
 }
 
-/// The non-gravity external forces of one parameter set.
+/// The non-gravity external forces of one control.
 #[derive(Debug)]
 pub struct ExternalForces {
     constant: Soa,
@@ -42,19 +42,19 @@ pub struct ExternalForces {
 }
 
 impl ExternalForces {
-    /// `None` when the parameters have no force besides gravity.
-    pub fn new(model: &Model, numbering: &Numbering, params: &SimParams) -> Option<Self> {
-        if params.point_forces.is_empty() && params.drags.is_empty() && params.wind.is_none() {
+    /// `None` when the control puts no force on the cloth.
+    pub fn new(model: &Model, numbering: &Numbering, control: &Control, dt: f64) -> Option<Self> {
+        if !control.acts_on_cloth() {
             return None;
         }
         let internal = |v: u32| numbering.internal[v as usize];
         let mut constant = Soa::zeros(numbering.slice_count());
-        for point in &params.point_forces {
+        for point in &control.point_forces {
             let k = internal(point.vertex) as usize;
             let sum = Vec3::from(constant.get(k)) + point.force.as_vec3();
             constant.set(k, sum.to_array());
         }
-        let drags = params
+        let drags = control
             .drags
             .iter()
             .map(|d| Drag {
@@ -63,7 +63,7 @@ impl ExternalForces {
                 stiffness: d.stiffness as f32,
             })
             .collect();
-        let wind = params.wind.map(|wind| {
+        let wind = control.wind.map(|wind| {
             let triangles: Vec<[u32; 3]> =
                 model.triangles.iter().map(|t| t.map(internal)).collect();
             let mut vertex_offsets = vec![0u32; numbering.padded_len + 1];
@@ -96,7 +96,7 @@ impl ExternalForces {
             constant,
             drags,
             wind,
-            inverse_dt: (1.0 / params.dt) as f32,
+            inverse_dt: (1.0 / dt) as f32,
         })
     }
 

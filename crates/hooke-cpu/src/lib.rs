@@ -12,27 +12,33 @@
 //! scatter produce bit-identical states; see [`kernels`] for why.
 #![allow(unsafe_code)] // Unchecked gathers in `kernels`; every index is checked when tables are built.
 
+mod collision;
 mod external;
 pub mod kernels;
 mod lanes;
 pub mod layout;
 pub mod simd;
+mod tables;
 
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 pub use hooke_core::PhaseTimes;
 use hooke_core::collide::{self, Collider};
-use hooke_core::{Model, SimError, SimParams, Solver, State, selfcollide};
+use hooke_core::selfcollide::SelfCollision;
+use hooke_core::{
+    Control, Material, Model, SimError, Snapshot, Solver, State, TimingSource, selfcollide,
+};
 use rayon::prelude::*;
 
 use external::ExternalForces;
 use kernels::{
-    B_END, Block, ForceChunk, GatherTable, IncidenceTable, IndexRows, InstructionSet, Integrator,
-    Soa, SpringTable, Stiffness, VertexChunk,
+    Block, ForceChunk, GatherTable, IncidenceTable, InstructionSet, Integrator, Soa, SpringTable,
+    VertexChunk,
 };
 use lanes::Lanes;
-use layout::{LANES, Numbering, Slices, VertexOrder};
+use layout::{Numbering, VertexOrder};
+use tables::{build_topology, into_blocks};
 
 /// Which of the paper's data structures computes the spring forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -124,7 +130,9 @@ pub struct CpuSolver {
     numbering: Numbering,
     topology: Topology,
     integrator: Integrator,
-    params: SimParams,
+    material: Material,
+    control: Control,
+    self_collision: Option<SelfCollision>,
     external: Option<ExternalForces>,
     extra_forces: Soa,
     /// Per-vertex net force, used only by the phase-separated step.
@@ -150,15 +158,8 @@ impl std::fmt::Debug for CpuSolver {
     }
 }
 
-fn into_blocks<T: Copy + Default>(values: Vec<T>) -> Vec<[T; LANES]> {
-    values
-        .chunks(LANES)
-        .map(|c| std::array::from_fn(|lane| c.get(lane).copied().unwrap_or_default()))
-        .collect()
-}
-
 impl CpuSolver {
-    pub fn new(model: &Model, params: &SimParams, options: CpuOptions) -> Result<Self, CpuError> {
+    pub fn new(model: &Model, material: &Material, options: CpuOptions) -> Result<Self, CpuError> {
         let mut builder = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("hooke-cpu-{i}"));
         if let Some(threads) = options.threads {
             builder = builder.num_threads(threads);
@@ -169,18 +170,7 @@ impl CpuSolver {
         })?;
         let numbering = Numbering::new(model, options.order);
         let slices = numbering.slice_count();
-        let topology = match options.method {
-            Method::Gather => Topology::Gather(gather_table(model, &numbering)),
-            Method::Scatter => {
-                let (springs, incidence) = scatter_tables(model, &numbering);
-                let spring_forces = Soa::zeros(springs.a.len() + 1);
-                Topology::Scatter {
-                    springs,
-                    incidence,
-                    spring_forces,
-                }
-            }
-        };
+        let topology = build_topology(model, &numbering, options.method, material.stiffness_scale);
         let mut solver = Self {
             options,
             pool: std::sync::Arc::new(pool),
@@ -190,7 +180,9 @@ impl CpuSolver {
                 scales: Lanes::default(),
                 gravity_step: [0.0; 3],
             },
-            params: params.clone(),
+            material: *material,
+            control: Control::default(),
+            self_collision: model.collision.self_collision,
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),
@@ -198,12 +190,12 @@ impl CpuSolver {
             next: Soa::zeros(slices),
             delta: Soa::zeros(slices),
             inverse_masses: selfcollide::inverse_masses(model),
-            colliders: params.colliders.clone(),
+            colliders: model.collision.colliders.clone(),
             slice_pushes: Vec::new(),
             model: model.clone(),
             steps_taken: 0,
         };
-        solver.set_params(params);
+        solver.set_integrator();
         solver.write_state(&State::at_rest(model.initial_positions.clone()));
         Ok(solver)
     }
@@ -291,13 +283,37 @@ impl CpuSolver {
         }
     }
 
-    /// One fused step; runs its parallel passes in the current rayon pool (callers install ours).
-    fn step_fused(&mut self) -> Result<(), SimError> {
-        let isa = self.options.instruction_set;
+    /// One step; runs its parallel passes in the current rayon pool (callers install ours). The
+    /// phases, in order: the control's forces, the spring forces (scatter: and their
+    /// accumulation), integration, collision. With `times`, forces and integration run as
+    /// separate passes, each timed; without, they are fused into one pass per vertex chunk,
+    /// which keeps each vertex's force in registers. Both give bit-identical states.
+    fn step_once(&mut self, mut times: Option<&mut PhaseTimes>) -> Result<(), SimError> {
+        let start = Instant::now();
         let has_extra = self.compute_external();
+        if let Some(times) = times.as_deref_mut() {
+            times.external = start.elapsed();
+        }
+        let all_finite = match times.as_deref_mut() {
+            None => self.forces_and_integration_fused(has_extra),
+            Some(times) => self.forces_then_integration(has_extra, times),
+        };
+        let start = Instant::now();
+        let bad_ball = self.collide();
+        self.self_collide();
+        if let Some(times) = times {
+            times.collision = start.elapsed();
+        }
+        self.finish_step(all_finite)?;
+        self.check_balls(bad_ball)
+    }
+
+    /// Forces and integration in one pass per vertex chunk; true if every result is finite.
+    fn forces_and_integration_fused(&mut self, has_extra: bool) -> bool {
+        let isa = self.options.instruction_set;
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
-        let all_finite = match &mut self.topology {
+        match &mut self.topology {
             Topology::Gather(table) => {
                 for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
                     kernels::gather_and_integrate(isa, table, integrator, current, extra, chunk)
@@ -322,11 +338,48 @@ impl CpuSolver {
                     )
                 })
             }
-        };
-        let bad_ball = self.collide();
-        self.self_collide();
-        self.finish_step(all_finite)?;
-        self.check_balls(bad_ball)
+        }
+    }
+
+    /// Forces (and accumulation) into a per-vertex buffer, then integration, each pass timed.
+    fn forces_then_integration(&mut self, has_extra: bool, times: &mut PhaseTimes) -> bool {
+        let isa = self.options.instruction_set;
+        if self.phase_forces.blocks() != self.numbering.slice_count() {
+            self.phase_forces = Soa::zeros(self.numbering.slice_count());
+        }
+        let extra = has_extra.then_some(&self.extra_forces);
+        let (current, integrator) = (&self.current, &self.integrator);
+        let phase_forces = &mut self.phase_forces;
+        let start = Instant::now();
+        match &mut self.topology {
+            Topology::Gather(table) => {
+                for_each_force_chunk(phase_forces, |chunk| {
+                    kernels::gather_forces(isa, table, current, chunk)
+                });
+                times.force_calculation = start.elapsed();
+            }
+            Topology::Scatter {
+                springs,
+                incidence,
+                spring_forces,
+            } => {
+                compute_spring_forces(isa, springs, current, spring_forces);
+                times.force_calculation = start.elapsed();
+                let start = Instant::now();
+                let spring_forces = &*spring_forces;
+                for_each_force_chunk(phase_forces, |chunk| {
+                    kernels::accumulate_forces(isa, incidence, spring_forces, chunk);
+                });
+                times.force_accumulation = Some(start.elapsed());
+            }
+        }
+        let start = Instant::now();
+        let phase_forces = &*phase_forces;
+        let all_finite = for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
+            kernels::integrate(isa, integrator, current, phase_forces, extra, chunk)
+        });
+        times.integration = start.elapsed();
+        all_finite
     }
 
     /// Reports a dynamic ball that `collide` found non-finite, at the step just finished.
@@ -340,165 +393,40 @@ impl CpuSolver {
         }
     }
 
-    /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
-    /// mesh order so every solver sorts the same keys the same way.
-    fn self_collide(&mut self) {
-        let Some(config) = self.params.self_collision else {
-            return;
-        };
-        let internal = &self.numbering.internal;
-        let mut positions: Vec<Vec3> = internal
-            .iter()
-            .map(|&k| Vec3::from_array(self.next.get(k as usize)))
-            .collect();
-        let moves = selfcollide::resolve(
-            &mut positions,
-            &self.inverse_masses,
-            &self.model.adjacency,
-            &config,
-        );
-        // Only moved vertices are written back; each move shifts the step's motion too.
-        for (v, c) in moves {
-            let k = internal[v as usize] as usize;
-            self.next
-                .set(k, (Vec3::from_array(self.next.get(k)) + c).to_array());
-            self.delta
-                .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
-        }
-    }
-
-    /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in
-    /// parallel over vertex chunks, before the new positions become current; then advances
-    /// dynamic balls by the momentum the cloth took from them. Returns the first ball that
-    /// became non-finite.
-    fn collide(&mut self) -> Option<usize> {
-        if self.colliders.is_empty() {
-            return None;
-        }
-        let (colliders, thickness) = (&self.colliders, self.params.collision_thickness);
-        // Colliders are placed where they are at the end of the step being finished.
-        let (dt, t) = (
-            self.params.dt,
-            (self.steps_taken + 1) as f64 * self.params.dt,
-        );
-        let (current, scales) = (&self.current, &self.integrator.scales);
-        let (real, count) = (self.model.vertex_count(), colliders.len());
-        let (masses, original) = (&self.model.masses, &self.numbering.original);
-        let [nx, ny, nz] = self.next.axes_mut();
-        let [dx, dy, dz] = self.delta.axes_mut();
-        let free = scales.axis(0);
-        let [cx, cy, cz] = current.axes();
-        // Per slice and collider: sum of m c over the slice's vertices (kg m).
-        self.slice_pushes.clear();
-        self.slice_pushes.resize(free.len() * count, DVec3::ZERO);
-        nx.par_iter_mut()
-            .zip(ny.par_iter_mut())
-            .zip(nz.par_iter_mut())
-            .zip(
-                dx.par_iter_mut()
-                    .zip(dy.par_iter_mut())
-                    .zip(dz.par_iter_mut()),
+    /// The integration constants of the current material: `dt^2/m`, `1 - c dt/m` and `g dt^2`.
+    fn set_integrator(&mut self) {
+        let dt = self.material.dt;
+        let per_vertex = |f: &dyn Fn(usize) -> f64| -> Vec<Block> {
+            into_blocks(
+                (0..self.numbering.padded_len)
+                    .map(|k| {
+                        self.numbering
+                            .original
+                            .get(k)
+                            .map_or(0.0, |&v| f(v as usize) as f32)
+                    })
+                    .collect(),
             )
-            .zip(self.slice_pushes.par_chunks_mut(count))
-            .enumerate()
-            .for_each(|(slice, ((((nx, ny), nz), ((dx, dy), dz)), pushes))| {
-                for lane in 0..LANES {
-                    let k = slice * LANES + lane;
-                    if k >= real || free[slice][lane] <= 0.0 {
-                        continue;
-                    }
-                    let x = DVec3::new(
-                        cx[slice][lane].into(),
-                        cy[slice][lane].into(),
-                        cz[slice][lane].into(),
-                    );
-                    let next = DVec3::new(nx[lane].into(), ny[lane].into(), nz[lane].into());
-                    let mass = masses[original[k] as usize];
-                    let p = collide::resolve_and_report(
-                        colliders,
-                        thickness,
-                        t,
-                        dt,
-                        x,
-                        next,
-                        |c, moved| pushes[c] += moved * mass,
-                    )
-                    .as_vec3();
-                    (nx[lane], ny[lane], nz[lane]) = (p.x, p.y, p.z);
-                    let d = p - x.as_vec3();
-                    (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);
-                }
-            });
-        if collide::any_dynamic(&self.colliders) {
-            // Summed in slice order: the same result for any thread count.
-            let mut pushes = vec![DVec3::ZERO; count];
-            for chunk in self.slice_pushes.chunks(count) {
-                for (total, push) in pushes.iter_mut().zip(chunk) {
-                    *total += *push;
-                }
+        };
+        let free = |v: usize| !self.model.pinned[v];
+        let force_scale = per_vertex(&|v| {
+            if free(v) {
+                dt * dt / self.model.masses[v]
+            } else {
+                0.0
             }
-            collide::advance_balls(&mut self.colliders, &pushes, self.params.gravity, dt, t);
-        }
-        collide::first_non_finite_ball(&self.colliders)
-    }
-
-    /// One step with every phase as its own pass, timed. Results equal [`Solver::step`]'s.
-    pub fn step_phased(&mut self) -> Result<PhaseTimes, SimError> {
-        let isa = self.options.instruction_set;
-        if self.phase_forces.blocks() != self.numbering.slice_count() {
-            self.phase_forces = Soa::zeros(self.numbering.slice_count());
-        }
-        let mut times = PhaseTimes::default();
-        let start = Instant::now();
-        let pool = std::sync::Arc::clone(&self.pool);
-        let has_extra = pool.install(|| self.compute_external());
-        times.external = start.elapsed();
-        let extra = has_extra.then_some(&self.extra_forces);
-        let (current, integrator) = (&self.current, &self.integrator);
-        let phase_forces = &mut self.phase_forces;
-        let pool = std::sync::Arc::clone(&self.pool);
-        let all_finite = pool.install(|| {
-            let start = Instant::now();
-            match &mut self.topology {
-                Topology::Gather(table) => {
-                    for_each_force_chunk(phase_forces, |chunk| {
-                        kernels::gather_forces(isa, table, current, chunk)
-                    });
-                    times.force_calculation = start.elapsed();
-                }
-                Topology::Scatter {
-                    springs,
-                    incidence,
-                    spring_forces,
-                } => {
-                    compute_spring_forces(isa, springs, current, spring_forces);
-                    times.force_calculation = start.elapsed();
-                    let start = Instant::now();
-                    let spring_forces = &*spring_forces;
-                    for_each_force_chunk(phase_forces, |chunk| {
-                        kernels::accumulate_forces(isa, incidence, spring_forces, chunk);
-                    });
-                    times.force_accumulation = Some(start.elapsed());
-                }
+        });
+        let velocity_scale = per_vertex(&|v| {
+            if free(v) {
+                1.0 - self.material.damping * dt / self.model.masses[v]
+            } else {
+                0.0
             }
-            let start = Instant::now();
-            let phase_forces = &*phase_forces;
-            let all_finite = for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
-                kernels::integrate(isa, integrator, current, phase_forces, extra, chunk)
-            });
-            times.integration = start.elapsed();
-            all_finite
         });
-        let start = Instant::now();
-        let bad_ball = pool.install(|| {
-            let bad_ball = self.collide();
-            self.self_collide();
-            bad_ball
-        });
-        times.collision = start.elapsed();
-        self.finish_step(all_finite)?;
-        self.check_balls(bad_ball)?;
-        Ok(times)
+        self.integrator = Integrator {
+            scales: Lanes::from_axes([force_scale, velocity_scale]),
+            gravity_step: (self.material.gravity * dt * dt).as_vec3().to_array(),
+        };
     }
 
     fn finish_step(&mut self, all_finite: bool) -> Result<(), SimError> {
@@ -587,137 +515,6 @@ fn compute_spring_forces(
         });
 }
 
-fn stiffness_of(model: &Model, per_entry: impl FnOnce() -> Vec<f32>) -> Stiffness {
-    match model.stiffnesses.first() {
-        Some(&first) if model.stiffnesses.iter().all(|k| *k == first) => {
-            Stiffness::uniform(first as f32)
-        }
-        _ => Stiffness::per_entry(into_blocks(per_entry())),
-    }
-}
-
-fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
-    let adjacency = &model.adjacency;
-    let (slices, entries) = Slices::build(
-        model,
-        numbering,
-        |_, e| {
-            let spring = adjacency.springs[e] as usize;
-            let neighbor = numbering.internal[adjacency.neighbors[e] as usize];
-            (
-                neighbor,
-                model.rest_lengths[spring] as f32,
-                model.stiffnesses[spring] as f32,
-            )
-        },
-        |k| (k as u32, 0.0, 0.0),
-    );
-    GatherTable {
-        slices,
-        neighbor: IndexRows::new(
-            into_blocks(entries.iter().map(|e| e.0).collect()),
-            u32::MAX,
-            numbering.padded_len,
-        ),
-        rest_length: into_blocks(entries.iter().map(|e| e.1).collect()),
-        stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
-    }
-}
-
-/// The order the scatter force pass visits springs in. Structured meshes have a handful of
-/// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
-/// ends of 8 consecutive springs consecutive vertices, so a row loads with vector loads. Other
-/// meshes are ordered by first end, which keeps position reads nearly sequential.
-fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
-    const MAX_CLASSES: usize = 16;
-    let offset = |s: u32| i64::from(ends[s as usize][1]) - i64::from(ends[s as usize][0]);
-    let mut counts = std::collections::HashMap::<i64, usize>::new();
-    for s in 0..ends.len() as u32 {
-        *counts.entry(offset(s)).or_default() += 1;
-    }
-    let mut common: Vec<(usize, i64)> = counts.iter().map(|(o, c)| (*c, *o)).collect();
-    common.sort_unstable_by(|a, b| b.cmp(a));
-    common.truncate(MAX_CLASSES);
-    let covered: usize = common.iter().map(|(c, _)| c).sum();
-    let mut order: Vec<u32> = (0..ends.len() as u32).collect();
-    if covered * 10 >= ends.len() * 9 {
-        let class: std::collections::HashMap<i64, usize> = common
-            .iter()
-            .enumerate()
-            .map(|(rank, (_, o))| (*o, rank))
-            .collect();
-        let key = |s: u32| {
-            let [a, b] = ends[s as usize];
-            (class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES), a, b)
-        };
-        order.sort_by_cached_key(|&s| key(s));
-    } else {
-        order.sort_by_key(|&s| {
-            let [a, b] = ends[s as usize];
-            (a.min(b), a.max(b))
-        });
-    }
-    order
-}
-
-fn scatter_tables(model: &Model, numbering: &Numbering) -> (SpringTable, IncidenceTable) {
-    let ends: Vec<[u32; 2]> = model
-        .spring_ends
-        .iter()
-        .map(|e| {
-            let [a, b] = e.map(|v| numbering.internal[v as usize]);
-            [a.min(b), a.max(b)]
-        })
-        .collect();
-    // `slot_of[s]` is model spring s's place in the force pass and force buffer.
-    let order = spring_order(&ends);
-    let mut slot_of = vec![0u32; model.spring_count()];
-    for (slot, &s) in order.iter().enumerate() {
-        slot_of[s as usize] = slot as u32;
-    }
-    let rows = model.spring_count().div_ceil(LANES);
-    let zero_slot = (rows * LANES) as u32;
-    let end_rows = |end: usize| {
-        IndexRows::new(
-            into_blocks(order.iter().map(|&s| ends[s as usize][end]).collect()),
-            u32::MAX,
-            numbering.padded_len,
-        )
-    };
-    let springs = SpringTable {
-        a: end_rows(0),
-        b: end_rows(1),
-        rest_length: into_blocks(
-            order
-                .iter()
-                .map(|&s| model.rest_lengths[s as usize] as f32)
-                .collect(),
-        ),
-        stiffness: stiffness_of(model, || {
-            order
-                .iter()
-                .map(|&s| model.stiffnesses[s as usize] as f32)
-                .collect()
-        }),
-    };
-    let adjacency = &model.adjacency;
-    let (slices, entries) = Slices::build(
-        model,
-        numbering,
-        |k, e| {
-            let spring = adjacency.springs[e] as usize;
-            let is_b_end = ends[spring][1] as usize == k;
-            slot_of[spring] | if is_b_end { B_END } else { 0 }
-        },
-        |_| zero_slot,
-    );
-    let incidence = IncidenceTable {
-        slices,
-        entry: IndexRows::new(into_blocks(entries), !B_END, zero_slot as usize + LANES),
-    };
-    (springs, incidence)
-}
-
 impl Solver for CpuSolver {
     fn describe(&self) -> String {
         let order = match self.options.order {
@@ -731,58 +528,64 @@ impl Solver for CpuSolver {
         )
     }
 
-    fn set_params(&mut self, params: &SimParams) {
-        let dt = params.dt;
-        let per_vertex = |f: &dyn Fn(usize) -> f64| -> Vec<Block> {
-            into_blocks(
-                (0..self.numbering.padded_len)
-                    .map(|k| {
-                        self.numbering
-                            .original
-                            .get(k)
-                            .map_or(0.0, |&v| f(v as usize) as f32)
-                    })
-                    .collect(),
-            )
-        };
-        let free = |v: usize| !self.model.pinned[v];
-        let force_scale = per_vertex(&|v| {
-            if free(v) {
-                dt * dt / self.model.masses[v]
-            } else {
-                0.0
-            }
-        });
-        let velocity_scale = per_vertex(&|v| {
-            if free(v) {
-                1.0 - params.damping * dt / self.model.masses[v]
-            } else {
-                0.0
-            }
-        });
-        self.integrator = Integrator {
-            scales: Lanes::from_axes([force_scale, velocity_scale]),
-            gravity_step: (params.gravity * dt * dt).as_vec3().to_array(),
-        };
-        self.external = ExternalForces::new(&self.model, &self.numbering, params);
+    fn set_material(&mut self, material: &Material) -> Result<(), SimError> {
+        if material.stiffness_scale != self.material.stiffness_scale {
+            self.topology = build_topology(
+                &self.model,
+                &self.numbering,
+                self.options.method,
+                material.stiffness_scale,
+            );
+        }
+        self.material = *material;
+        self.set_integrator();
+        self.external = ExternalForces::new(
+            &self.model,
+            &self.numbering,
+            &self.control,
+            self.material.dt,
+        );
+        Ok(())
+    }
+
+    fn set_control(&mut self, control: &Control) -> Result<(), SimError> {
+        self.external =
+            ExternalForces::new(&self.model, &self.numbering, control, self.material.dt);
         if self.external.is_some() && self.extra_forces.blocks() != self.numbering.slice_count() {
             self.extra_forces = Soa::zeros(self.numbering.slice_count());
         }
-        self.colliders = collide::carry_over(&self.colliders, &params.colliders);
-        self.params = params.clone();
+        collide::apply_pushes(
+            &mut self.colliders,
+            &self.model.collision.colliders,
+            &control.ball_pushes,
+        );
+        self.control = control.clone();
+        Ok(())
+    }
+
+    fn set_self_collision(&mut self, config: Option<SelfCollision>) -> Result<(), SimError> {
+        self.self_collision = config;
+        Ok(())
+    }
+
+    fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError> {
+        let pool = std::sync::Arc::clone(&self.pool);
+        let mut times = PhaseTimes::default();
+        pool.install(|| self.step_once(Some(&mut times)))?;
+        Ok((times, TimingSource::WallClock))
     }
 
     fn step(&mut self, steps: u32) -> Result<(), SimError> {
         let pool = std::sync::Arc::clone(&self.pool);
         pool.install(|| {
             for _ in 0..steps {
-                self.step_fused()?;
+                self.step_once(None)?;
             }
             Ok(())
         })
     }
 
-    fn read_state(&self) -> State {
+    fn read_state(&self) -> Result<State, SimError> {
         let read = |soa: &Soa, v: usize| {
             DVec3::from(soa.get(self.numbering.internal[v] as usize).map(f64::from))
         };
@@ -794,10 +597,10 @@ impl Solver for CpuSolver {
             .enumerate()
             .map(|(v, x)| *x - read(&self.delta, v))
             .collect();
-        State {
+        Ok(State {
             positions,
             previous_positions,
-        }
+        })
     }
 
     fn write_state(&mut self, state: &State) {
@@ -817,7 +620,17 @@ impl Solver for CpuSolver {
         self.steps_taken
     }
 
-    fn colliders(&self) -> Vec<Collider> {
-        collide::placed(&self.colliders, self.steps_taken as f64 * self.params.dt)
+    fn colliders(&self) -> Result<Vec<Collider>, SimError> {
+        Ok(collide::placed(
+            &self.colliders,
+            self.steps_taken as f64 * self.material.dt,
+        ))
+    }
+
+    fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError> {
+        self.write_state(&snapshot.state);
+        collide::restore_balls(&mut self.colliders, &snapshot.colliders);
+        self.steps_taken = snapshot.steps_taken;
+        Ok(())
     }
 }

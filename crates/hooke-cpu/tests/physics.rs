@@ -8,28 +8,69 @@ use hooke_core::diagnostics::relative_l2;
 use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{
-    MassModel, Model, ModelOptions, SimError, SimParams, Solver, State, StiffnessModel, Wind,
+    Control, MassModel, Material, Model, ModelOptions, SimError, Solver, State, StiffnessModel,
+    Wind,
 };
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
 
-fn cpu(model: &Model, params: &SimParams, method: Method, threads: usize) -> CpuSolver {
+fn cpu_solver(
+    model: &Model,
+    material: &Material,
+    control: &Control,
+    method: Method,
+    threads: usize,
+) -> CpuSolver {
     let options = CpuOptions {
         method,
         threads: Some(threads),
         ..Default::default()
     };
-    CpuSolver::new(model, params, options).expect("cpu solver")
+    let mut solver = CpuSolver::new(model, material, options).expect("cpu solver");
+    solver.set_control(control).expect("control");
+    solver
 }
 
-/// Every solver under test, the reference first.
-fn all_solvers(model: &Model, params: &SimParams) -> Vec<Box<dyn Solver>> {
+fn cpu(scene: &Scene, method: Method, threads: usize) -> CpuSolver {
+    cpu_solver(
+        &scene.model,
+        &scene.material,
+        &scene.control,
+        method,
+        threads,
+    )
+}
+
+fn reference(scene: &Scene) -> ReferenceSolver {
+    let mut solver = ReferenceSolver::new(&scene.model, &scene.material);
+    solver.set_control(&scene.control).expect("control");
+    solver
+}
+
+/// Every solver under test, the reference first, driven by `control`.
+fn solvers_of(model: &Model, material: &Material, control: &Control) -> Vec<Box<dyn Solver>> {
+    let mut reference = ReferenceSolver::new(model, material);
+    reference.set_control(control).expect("control");
     vec![
-        Box::new(ReferenceSolver::new(model, params)),
-        Box::new(cpu(model, params, Method::Gather, 2)),
-        Box::new(cpu(model, params, Method::Scatter, 2)),
+        Box::new(reference),
+        Box::new(cpu_solver(model, material, control, Method::Gather, 2)),
+        Box::new(cpu_solver(model, material, control, Method::Scatter, 2)),
     ]
+}
+
+/// Every solver under test for a scene, driven by the scene's control.
+fn all_solvers(scene: &Scene) -> Vec<Box<dyn Solver>> {
+    solvers_of(&scene.model, &scene.material, &scene.control)
+}
+
+/// Every solver of a bare model under `material`, without control.
+fn model_solvers(model: &Model, material: Material) -> Vec<Box<dyn Solver>> {
+    solvers_of(model, &material, &Control::default())
+}
+
+fn state_of(solver: &dyn Solver) -> State {
+    solver.read_state().expect("state reads back")
 }
 
 fn grid_section(columns: u32, rows: u32) -> MeshSection {
@@ -68,7 +109,7 @@ fn two_masses(pinned: Vec<u32>, stretch: f64, k: f64, m: f64) -> Model {
 /// its extension (linearly interpolated between steps).
 fn measured_period(solver: &mut dyn Solver, model: &Model, dt: f64, steps: u32) -> f64 {
     let extension = |s: &dyn Solver| {
-        let state = s.read_state();
+        let state = state_of(s);
         state.positions[0].distance(state.positions[1]) - model.rest_lengths[0]
     };
     let mut crossings = Vec::new();
@@ -93,12 +134,12 @@ fn single_spring_period_matches_two_pi_sqrt_m_eff_over_k() {
         let model = two_masses(pinned, 0.01, k, m);
         let expected = 2.0 * std::f64::consts::PI * (m_eff / k).sqrt();
         let dt = expected / 2000.0;
-        let params = SimParams {
+        let material = Material {
             dt,
             gravity: DVec3::ZERO,
             ..Default::default()
         };
-        for mut solver in all_solvers(&model, &params) {
+        for mut solver in model_solvers(&model, material) {
             let period = measured_period(solver.as_mut(), &model, dt, 12_000);
             // Verlet's period error is (w dt)^2 / 24 ~ 4e-7 here; crossing interpolation and
             // f32 rounding of a 1 cm amplitude stay well below 1e-4.
@@ -124,14 +165,14 @@ fn free_fall_follows_verlet_closed_form_and_converges_to_g_t2_over_2() {
         .expect("model");
     let g = 9.81;
     for dt in [1e-3, 1e-4] {
-        let params = SimParams {
+        let material = Material {
             dt,
             ..Default::default()
         };
         let n = (0.2 / dt).round() as u32;
-        for mut solver in all_solvers(&model, &params) {
+        for mut solver in model_solvers(&model, material) {
             solver.step(n).expect("stable");
-            let fallen = 2.0 - solver.read_state().positions[0].y;
+            let fallen = 2.0 - state_of(solver.as_ref()).positions[0].y;
             let t = f64::from(n) * dt;
             // Starting at rest with x(-dt) = x(0), Verlet gives exactly g dt^2 n (n + 1) / 2,
             // which is g t^2 / 2 plus a start-up offset g t dt / 2 that vanishes with dt.
@@ -151,26 +192,26 @@ fn free_fall_follows_verlet_closed_form_and_converges_to_g_t2_over_2() {
 #[test]
 fn energy_is_conserved_without_damping() {
     let mut scene = benchmark_scene(grid_section(12, 12), 144);
-    scene.params.damping = 0.0;
-    scene.params.dt = 0.3 * scene.max_stable_dt;
-    let params = scene.params.clone();
-    for mut solver in all_solvers(&scene.model, &params) {
+    scene.material.damping = 0.0;
+    scene.material.dt = 0.3 * scene.max_stable_dt;
+    let material = scene.material;
+    for mut solver in all_solvers(&scene) {
         // Energy at step n with the central velocity (x_{n+1} - x_{n-1}) / 2dt, which Verlet
         // conserves up to bounded O(dt^2) oscillation without drift.
-        let mut states: Vec<State> = vec![solver.read_state()];
+        let mut states: Vec<State> = vec![state_of(solver.as_ref())];
         let mut energies = Vec::new();
         for _ in 0..3000 {
             solver.step(1).expect("stable");
-            states.push(solver.read_state());
+            states.push(state_of(solver.as_ref()));
             if states.len() == 3 {
                 let mut central = states[1].clone();
                 central.previous_positions = states[0].positions.clone();
                 central.positions = states[1].positions.clone();
-                let mut e = energy(&scene.model, &central, &params);
+                let mut e = energy(&scene.model, &central, &material);
                 let v2: f64 = (0..scene.model.vertex_count())
                     .map(|i| {
                         let v =
-                            (states[2].positions[i] - states[0].positions[i]) / (2.0 * params.dt);
+                            (states[2].positions[i] - states[0].positions[i]) / (2.0 * material.dt);
                         0.5 * scene.model.masses[i] * v.length_squared()
                     })
                     .sum();
@@ -205,9 +246,9 @@ fn energy_is_conserved_without_damping() {
 #[test]
 fn pinned_points_do_not_move() {
     let scene = benchmark_scene(grid_section(10, 10), 100);
-    for mut solver in all_solvers(&scene.model, &scene.params) {
+    for mut solver in all_solvers(&scene) {
         solver.step(300).expect("stable");
-        let state = solver.read_state();
+        let state = state_of(solver.as_ref());
         for (i, pinned) in scene.model.pinned.iter().enumerate() {
             if *pinned {
                 let start = scene.model.initial_positions[i].as_vec3().as_dvec3();
@@ -223,30 +264,27 @@ fn hanging_cloth_pin_reactions_balance_its_weight() {
     // Stiffer springs, and damping near critical for the slowest (pendulum-like) modes, so the
     // cloth settles to static equilibrium within the run.
     scene.model.stiffnesses.iter_mut().for_each(|k| *k *= 10.0);
-    scene.params.damping = 0.1;
-    scene.params.dt = 0.5 * hooke_core::stability::stability_limit(&scene.model, 0.1).max_dt;
-    let weight = scene.model.total_mass() * scene.params.gravity;
-    for (index, mut solver) in all_solvers(&scene.model, &scene.params)
-        .into_iter()
-        .enumerate()
-    {
+    scene.material.damping = 0.1;
+    scene.material.dt = 0.5 * hooke_core::stability::stability_limit(&scene.model, 0.1).max_dt;
+    let weight = scene.model.total_mass() * scene.material.gravity;
+    for (index, mut solver) in all_solvers(&scene).into_iter().enumerate() {
         solver.step(40_000).expect("stable");
-        let state = solver.read_state();
+        let state = state_of(solver.as_ref());
         let speed = (0..scene.model.vertex_count())
-            .map(|i| state.velocity(i, scene.params.dt).length())
+            .map(|i| state.velocity(i, scene.material.dt).length())
             .fold(0.0, f64::max);
         // f32 positions of order 1 m can only settle into a limit cycle of a few ulps per step.
         let settled = if index == 0 {
             1e-4
         } else {
-            8.0 * f64::from(f32::EPSILON) / scene.params.dt
+            8.0 * f64::from(f32::EPSILON) / scene.material.dt
         };
         assert!(
             speed < settled,
             "{}: not settled, max speed {speed}",
             solver.describe()
         );
-        let total = hooke_core::test_scenes::mean_pin_reaction(solver.as_mut(), &scene, 2000);
+        let total = hooke_testkit::mean_pin_reaction(solver.as_mut(), &scene, 2000);
         assert!(
             (total + weight).length() < 1e-3 * weight.length(),
             "{}: reactions {total} vs weight {weight}",
@@ -265,13 +303,13 @@ fn cpu_methods_match_reference_after_100_benchmark_steps() {
         (irregular_section(2000), 2000),
     ] {
         let scene = benchmark_scene(mesh, vertices);
-        let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+        let mut reference = reference(&scene);
         reference.step(100).expect("stable");
-        let expected = reference.read_state().positions;
+        let expected = state_of(&reference).positions;
         for method in Method::ALL {
-            let mut solver = cpu(&scene.model, &scene.params, method, 2);
+            let mut solver = cpu(&scene, method, 2);
             solver.step(100).expect("stable");
-            let error = relative_l2(&solver.read_state().positions, &expected);
+            let error = relative_l2(&state_of(&solver).positions, &expected);
             eprintln!(
                 "{vertices} vertices, {}: relative L2 error {error:.2e}",
                 solver.describe()
@@ -287,7 +325,7 @@ fn cpu_methods_match_reference_after_100_benchmark_steps() {
 
 /// A model and parameters exercising everything: irregular mesh, per-spring stiffness,
 /// area-lumped masses, wind, a drag and a point force.
-fn everything_scene() -> (Model, SimParams) {
+fn everything_scene() -> Scene {
     let mut scene = benchmark_scene(irregular_section(700), 700);
     let options = ModelOptions {
         stiffness: StiffnessModel::InverseRestLength(20.0),
@@ -295,37 +333,37 @@ fn everything_scene() -> (Model, SimParams) {
         rest_length_scale: 0.98,
         pinned: vec![0, 5],
     };
-    let model = Model::from_mesh(&scene.mesh, &options).expect("model");
-    scene.params.dt = 0.5 * hooke_core::stability::stability_limit(&model, 0.0).max_dt;
-    scene.params.damping = 0.001;
-    scene.params.wind = Some(Wind {
+    scene.model = Model::from_mesh(&scene.mesh, &options).expect("model");
+    scene.material.dt = 0.5 * hooke_core::stability::stability_limit(&scene.model, 0.0).max_dt;
+    scene.material.damping = 0.001;
+    scene.control.wind = Some(Wind {
         velocity: DVec3::new(1.0, 0.5, 2.0),
         coefficient: 0.3,
     });
-    scene.params.point_forces = vec![hooke_core::PointForce {
+    scene.control.point_forces = vec![hooke_core::PointForce {
         vertex: 9,
         force: DVec3::new(0.0, 0.5, 0.0),
     }];
-    scene.params.drags = vec![hooke_core::Drag {
+    scene.control.drags = vec![hooke_core::Drag {
         vertices: vec![20, 21],
         target: DVec3::new(0.0, 0.3, 0.0),
         stiffness: 2.0,
     }];
-    (model, scene.params)
+    scene
 }
 
 #[test]
 fn all_forces_match_reference() {
-    let (model, params) = everything_scene();
-    let mut reference = ReferenceSolver::new(&model, &params);
+    let scene = everything_scene();
+    let mut reference = reference(&scene);
     reference.step(200).expect("stable");
-    let expected = reference.read_state().positions;
-    let moved = relative_l2(&model.initial_positions, &expected);
+    let expected = state_of(&reference).positions;
+    let moved = relative_l2(&scene.model.initial_positions, &expected);
     assert!(moved > 1e-3, "the forces should move the cloth");
     for method in Method::ALL {
-        let mut solver = cpu(&model, &params, method, 2);
+        let mut solver = cpu(&scene, method, 2);
         solver.step(200).expect("stable");
-        let error = relative_l2(&solver.read_state().positions, &expected);
+        let error = relative_l2(&state_of(&solver).positions, &expected);
         assert!(
             error < AGREEMENT_AFTER_100_STEPS,
             "{}: {error:e}",
@@ -336,7 +374,7 @@ fn all_forces_match_reference() {
 
 #[test]
 fn gather_scatter_orders_and_thread_counts_are_bit_identical() {
-    let (model, params) = everything_scene();
+    let scene = everything_scene();
     let run = |method, order, threads| {
         let options = CpuOptions {
             method,
@@ -344,9 +382,10 @@ fn gather_scatter_orders_and_thread_counts_are_bit_identical() {
             order,
             ..Default::default()
         };
-        let mut solver = CpuSolver::new(&model, &params, options).expect("solver");
+        let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
+        solver.set_control(&scene.control).expect("control");
         solver.step(150).expect("stable");
-        solver.read_state()
+        state_of(&solver)
     };
     let baseline = run(Method::Scatter, VertexOrder::Mesh, 1);
     for method in Method::ALL {
@@ -363,27 +402,27 @@ fn gather_scatter_orders_and_thread_counts_are_bit_identical() {
 
 #[test]
 fn phased_step_equals_fused_step() {
-    let (model, params) = everything_scene();
+    let scene = everything_scene();
     for method in Method::ALL {
-        let mut fused = cpu(&model, &params, method, 2);
-        let mut phased = cpu(&model, &params, method, 2);
+        let mut fused = cpu(&scene, method, 2);
+        let mut phased = cpu(&scene, method, 2);
         fused.step(50).expect("stable");
         for _ in 0..50 {
-            let times = phased.step_phased().expect("stable");
+            let (times, _) = phased.step_timed().expect("stable");
             assert_eq!(
                 times.force_accumulation.is_some(),
                 method == Method::Scatter
             );
         }
-        assert!(fused.read_state() == phased.read_state(), "{method:?}");
+        assert!(state_of(&fused) == state_of(&phased), "{method:?}");
     }
 }
 
 #[test]
 fn blow_up_is_reported_with_step_and_vertex() {
     let mut scene = benchmark_scene(grid_section(8, 8), 64);
-    scene.params.dt = 3.0 * scene.max_stable_dt;
-    for mut solver in all_solvers(&scene.model, &scene.params) {
+    scene.material.dt = 3.0 * scene.max_stable_dt;
+    for mut solver in all_solvers(&scene) {
         let error = solver.step(100_000).expect_err("must blow up");
         let SimError::NonFinite { step, vertex } = error else {
             panic!("unexpected {error:?}");
@@ -396,7 +435,7 @@ fn blow_up_is_reported_with_step_and_vertex() {
 
 #[test]
 fn avx2_and_portable_kernels_are_bit_identical() {
-    let (model, params) = everything_scene();
+    let scene = everything_scene();
     let run = |method, instruction_set| {
         let options = CpuOptions {
             method,
@@ -404,9 +443,10 @@ fn avx2_and_portable_kernels_are_bit_identical() {
             order: VertexOrder::Mesh,
             instruction_set,
         };
-        let mut solver = CpuSolver::new(&model, &params, options).expect("solver");
+        let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
+        solver.set_control(&scene.control).expect("control");
         solver.step(100).expect("stable");
-        solver.read_state()
+        state_of(&solver)
     };
     for method in Method::ALL {
         assert!(
@@ -420,9 +460,9 @@ fn avx2_and_portable_kernels_are_bit_identical() {
 /// The closest any vertex comes to the surfaces of the ball and the ground (negative: inside).
 #[test]
 fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_or_the_ground() {
-    use hooke_core::test_scenes::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
+    use hooke_testkit::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
     for scene in [cloth_onto_ball(), cloth_onto_capsule()] {
-        for mut solver in all_solvers(&scene.model, &scene.params) {
+        for mut solver in all_solvers(&scene) {
             check_cloth_stays_out(solver.as_mut(), &scene, 1e-6);
         }
     }
@@ -430,9 +470,9 @@ fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_or_the_ground() {
 
 #[test]
 fn a_moving_ball_pushes_through_a_curtain_without_entering_it() {
-    let scene = hooke_core::test_scenes::curtain_and_moving_ball();
-    for mut solver in all_solvers(&scene.model, &scene.params) {
-        hooke_core::test_scenes::check_curtain_pushed(solver.as_mut(), &scene, 1e-6);
+    let scene = hooke_testkit::curtain_and_moving_ball();
+    for mut solver in all_solvers(&scene) {
+        hooke_testkit::check_curtain_pushed(solver.as_mut(), &scene, 1e-6);
     }
 }
 
@@ -441,20 +481,17 @@ const FOLD_STEPS: u32 = 5000;
 
 #[test]
 fn self_collision_keeps_folded_layers_apart_on_every_solver() {
-    use hooke_core::test_scenes::{folding_cloth, interpenetrating_pairs};
+    use hooke_testkit::{folding_cloth, interpenetrating_pairs};
     let scene = folding_cloth();
-    let off = SimParams {
-        self_collision: None,
-        ..scene.params.clone()
-    };
-    let mut without = cpu(&scene.model, &off, Method::Gather, 2);
+    let mut without = cpu(&scene, Method::Gather, 2);
+    without.set_self_collision(None).expect("off");
     without.step(FOLD_STEPS).expect("stable");
-    let crossed = interpenetrating_pairs(&scene, &without.read_state());
+    let crossed = interpenetrating_pairs(&scene, &state_of(&without));
     // The scene must fold: without self-collision, layers pass into each other.
     assert!(crossed > 100, "only {crossed} pairs without self-collision");
-    for mut solver in all_solvers(&scene.model, &scene.params) {
+    for mut solver in all_solvers(&scene) {
         solver.step(FOLD_STEPS).expect("stable");
-        let kept = interpenetrating_pairs(&scene, &solver.read_state());
+        let kept = interpenetrating_pairs(&scene, &state_of(solver.as_ref()));
         assert!(
             kept * 20 < crossed,
             "{}: {kept} interpenetrating pairs with self-collision, {crossed} without",
@@ -468,27 +505,24 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
     // Folded cloth is chaotic, so solvers are compared one step at a time from the same
     // crumpled state, one folded without self-collision so many pairs need pushing apart:
     // same keys, same sort, same pushes.
-    let scene = hooke_core::test_scenes::folding_cloth();
-    let off = SimParams {
-        self_collision: None,
-        ..scene.params.clone()
-    };
-    let mut folder = cpu(&scene.model, &off, Method::Gather, 2);
+    let scene = hooke_testkit::folding_cloth();
+    let mut folder = cpu(&scene, Method::Gather, 2);
+    folder.set_self_collision(None).expect("off");
     folder.step(FOLD_STEPS).expect("stable");
-    let folded = folder.read_state();
-    let mut solvers = all_solvers(&scene.model, &scene.params);
+    let folded = state_of(&folder);
+    let mut solvers = all_solvers(&scene);
     let mut states = Vec::new();
     for solver in &mut solvers {
         solver.write_state(&folded);
         solver.step(1).expect("stable");
-        states.push(solver.read_state());
+        states.push(state_of(solver.as_ref()));
     }
     // The step must push pairs apart, or the comparison would say nothing about them.
-    let mut plain = ReferenceSolver::new(&scene.model, &off);
+    let mut plain = reference(&scene);
+    plain.set_self_collision(None).expect("off");
     plain.write_state(&folded);
     plain.step(1).expect("stable");
-    let pushed = plain
-        .read_state()
+    let pushed = state_of(&plain)
         .positions
         .iter()
         .zip(&states[0].positions)
@@ -510,16 +544,16 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
 
 #[test]
 fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_every_solver() {
-    let scene = hooke_core::test_scenes::ball_onto_sheet();
-    for mut solver in all_solvers(&scene.model, &scene.params) {
-        hooke_core::test_scenes::check_ball_dropped_on_sheet(solver.as_mut(), &scene);
+    let scene = hooke_testkit::ball_onto_sheet();
+    for mut solver in all_solvers(&scene) {
+        hooke_testkit::check_ball_dropped_on_sheet(solver.as_mut(), &scene);
     }
 }
 
 #[test]
 fn a_ball_leaving_the_numbers_is_reported_with_step_and_collider() {
-    let scene = hooke_core::test_scenes::exploding_ball();
-    for mut solver in all_solvers(&scene.model, &scene.params) {
+    let scene = hooke_testkit::exploding_ball();
+    for mut solver in all_solvers(&scene) {
         let error = solver.step(5).expect_err("the ball explodes");
         assert_eq!(
             error,

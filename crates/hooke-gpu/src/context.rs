@@ -53,6 +53,8 @@ pub struct GpuContext {
     errors: Arc<Mutex<Vec<String>>>,
     /// Read-backs that waited for the GPU (see [`GpuContext::blocking_reads`]).
     blocking_reads: std::sync::atomic::AtomicU64,
+    /// Compute and render pipelines created (see [`GpuContext::pipelines_created`]).
+    pipelines_created: std::sync::atomic::AtomicU64,
 }
 
 fn instance() -> wgpu::Instance {
@@ -145,6 +147,7 @@ impl GpuContext {
             features,
             errors,
             blocking_reads: Default::default(),
+            pipelines_created: Default::default(),
         }))
     }
 
@@ -200,6 +203,28 @@ impl GpuContext {
     /// Counts a read-back that waits for the GPU.
     pub(crate) fn note_blocking_read(&self) {
         self.blocking_reads
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Whether command buffers get debug groups (each pass under its phase's name). Not on
+    /// Mesa's lavapipe (llvmpipe over Vulkan): Mesa 22.3's build crashes (SIGSEGV) on
+    /// command-buffer debug labels; every other adapter records them.
+    pub fn records_debug_groups(&self) -> bool {
+        !(self.info.backend == wgpu::Backend::Vulkan && self.info.name.starts_with("llvmpipe"))
+    }
+
+    /// How many compute and render pipelines were created on this device. Compiling a pipeline
+    /// stalls a frame on a real GPU: an interactive frame loop, a drag, a slider must not add
+    /// to it; the viewer reports it and its smoke test checks it.
+    pub fn pipelines_created(&self) -> u64 {
+        self.pipelines_created
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Counts a pipeline creation (every one goes through `gpu::compute_pipeline` or
+    /// `gpu::render_pipeline`).
+    pub(crate) fn note_pipeline(&self) {
+        self.pipelines_created
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 

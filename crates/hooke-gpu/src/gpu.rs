@@ -71,22 +71,19 @@ pub fn check_binding_size(
     Ok(())
 }
 
-/// Compiles a compute entry point (bind group layout derived from the shader).
+/// Compiles a compute entry point (bind group layout derived from the shader); counted in
+/// [`GpuContext::pipelines_created`].
 pub fn compute_pipeline(
     context: &GpuContext,
     label: &str,
     source: &str,
     entry_point: &str,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
+    context.note_pipeline();
     let scope = context
         .device
         .push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = context
-        .device
-        .create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
+    let module = shader_module(context, label, source);
     let pipeline = context
         .device
         .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
@@ -101,6 +98,36 @@ pub fn compute_pipeline(
         Some(error) => Err(GpuError::Validation(format!("{label}: {error}"))),
         None => Ok(pipeline),
     }
+}
+
+/// Creates a render pipeline, counted in [`GpuContext::pipelines_created`], with validation
+/// errors returned as values.
+pub fn render_pipeline(
+    context: &GpuContext,
+    descriptor: &wgpu::RenderPipelineDescriptor<'_>,
+) -> Result<wgpu::RenderPipeline, GpuError> {
+    context.note_pipeline();
+    let scope = context
+        .device
+        .push_error_scope(wgpu::ErrorFilter::Validation);
+    let pipeline = context.device.create_render_pipeline(descriptor);
+    match pollster::block_on(scope.pop()) {
+        Some(error) => Err(GpuError::Validation(format!(
+            "{}: {error}",
+            descriptor.label.unwrap_or("render pipeline")
+        ))),
+        None => Ok(pipeline),
+    }
+}
+
+/// A shader module from WGSL source.
+pub fn shader_module(context: &GpuContext, label: &str, source: &str) -> wgpu::ShaderModule {
+    context
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        })
 }
 
 /// A bind group for group 0 of `layout` with `(binding, resource)` pairs.
@@ -124,6 +151,63 @@ pub fn bind_group(
             layout,
             entries: &entries,
         })
+}
+
+/// A compute entry point bound once per position buffer (the two swap roles every step), run
+/// over a fixed number of invocations: the shape of every kernel of a step. A kernel that reads
+/// no positions gets the same resources for both.
+#[derive(Debug)]
+pub struct Kernel {
+    label: &'static str,
+    pipeline: wgpu::ComputePipeline,
+    /// By which position buffer is current.
+    groups: [wgpu::BindGroup; 2],
+    count: u32,
+}
+
+impl Kernel {
+    /// Compiles `entry_point` of `source` and binds `resources(current)` for both position
+    /// buffers; `count` invocations per dispatch.
+    pub fn new<'a>(
+        context: &GpuContext,
+        label: &'static str,
+        source: &str,
+        entry_point: &str,
+        count: u32,
+        resources: impl Fn(usize) -> Vec<(u32, wgpu::BindingResource<'a>)>,
+    ) -> Result<Self, GpuError> {
+        let pipeline = compute_pipeline(context, label, source, entry_point)?;
+        let layout = pipeline.get_bind_group_layout(0);
+        let groups = [0, 1].map(|current| bind_group(context, label, &layout, &resources(current)));
+        Ok(Self {
+            label,
+            pipeline,
+            groups,
+            count,
+        })
+    }
+
+    /// One compute pass of the kernel, with `current` the current position buffer.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        current: usize,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
+        dispatch(
+            encoder,
+            self.label,
+            &self.pipeline,
+            &self.groups[current],
+            self.count,
+            timestamps,
+        );
+    }
+
+    /// The kernel recorded into an open pass.
+    pub fn encode_in(&self, pass: &mut wgpu::ComputePass<'_>, current: usize) {
+        dispatch_in(pass, &self.pipeline, &self.groups[current], self.count);
+    }
 }
 
 /// Workgroups for `count` invocations as a 2D grid (one dimension holds at most 65535);
@@ -221,6 +305,28 @@ pub fn read_back(
     drop(view);
     staging.unmap();
     Ok(out)
+}
+
+/// `vertex_count + 1` offsets, then each vertex's triangle indices.
+pub(crate) fn vertex_triangle_lists(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
+    let mut offsets = vec![0u32; vertex_count + 1];
+    for t in triangles {
+        for &v in t {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for v in 0..vertex_count {
+        offsets[v + 1] += offsets[v];
+    }
+    let mut cursor = offsets.clone();
+    offsets.resize(vertex_count + 1 + 3 * triangles.len(), 0);
+    for (index, t) in triangles.iter().enumerate() {
+        for &v in t {
+            offsets[vertex_count + 1 + cursor[v as usize] as usize] = index as u32;
+            cursor[v as usize] += 1;
+        }
+    }
+    offsets
 }
 
 #[cfg(test)]

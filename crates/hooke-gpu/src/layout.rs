@@ -33,6 +33,21 @@ pub struct StepUniforms {
     pub pad: [u32; 3],
 }
 
+/// One collider (`Collider` in WGSL): a sphere, plane or capsule, scripted or a dynamic ball.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCollider {
+    /// Centre (sphere), point (plane) or start (capsule) xyz, m; radius w, or -1 for a plane.
+    pub place: [f32; 4],
+    /// A ball's spin (rad/s), a plane's normal or a capsule's axis (end - start) xyz; friction w.
+    pub surface: [f32; 4],
+    /// Velocity xyz, m/s; inverse mass w (1/kg), > 0 only for a dynamic ball.
+    pub motion: [f32; 4],
+    /// A dynamic ball: applied force xyz (N) and restitution w. A scripted collider: 1 if a
+    /// capsule, 0, 1 if its path repeats, its keyframe count.
+    pub script: [f32; 4],
+}
+
 /// A spring (`Spring` in WGSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -153,6 +168,16 @@ mod tests {
             offset_of!(StepUniforms, dynamic_count),
         ];
         assert_eq!(&offsets[..host.len()], host.map(|o| o as u32).as_slice());
+
+        let (size, offsets) = wgsl_layout("Collider");
+        assert_eq!(size as usize, size_of::<GpuCollider>());
+        let host = [
+            offset_of!(GpuCollider, place),
+            offset_of!(GpuCollider, surface),
+            offset_of!(GpuCollider, motion),
+            offset_of!(GpuCollider, script),
+        ];
+        assert_eq!(offsets, host.map(|o| o as u32));
 
         let (size, offsets) = wgsl_layout("Spring");
         assert_eq!(size as usize, size_of::<GpuSpring>());

@@ -1,19 +1,30 @@
 //! hooke-gpu: the mass-spring step on the GPU with wgpu and WGSL (paper Section 4). The state
 //! stays in GPU memory; reading it back is an explicit call.
+//!
+//! Layout: [`GpuModel`] and [`GpuState`] own the buffers; [`kernels`] holds one `<name>.rs`
+//! beside each `<name>.wgsl`, owning that kernel's pipelines and bind groups; [`GpuSolver`] owns
+//! the kernels and lists a step's passes once; [`render`] draws straight from the solver's
+//! position buffer.
 
 mod context;
 pub mod gpu;
-mod kernels;
+pub mod kernels;
 pub mod layout;
-pub mod radix_sort;
+mod methods;
+mod model;
 pub mod render;
-mod self_collide;
 mod solver;
+mod state;
+mod step;
 
 pub use context::{
     AdapterSummary, GpuContext, GpuError, OPTIONAL_FEATURES, gpu_required, list_adapters,
 };
-pub use solver::{Accumulation, GpuMemory, GpuMethod, GpuSolver, TimingSource, positions_to_vec4};
+pub use kernels::radix_sort;
+pub use methods::{Accumulation, GpuMemory, GpuMethod};
+pub use model::GpuModel;
+pub use solver::GpuSolver;
+pub use state::{GpuState, positions_to_vec4};
 
 /// The wgpu this crate is built on, for callers that need its types.
 pub use wgpu;

@@ -9,8 +9,7 @@ use hooke_core::diagnostics::relative_l2;
 use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{
-    Drag, MassModel, Model, ModelOptions, PointForce, SimError, SimParams, Solver, StiffnessModel,
-    Wind,
+    Drag, MassModel, Model, ModelOptions, PointForce, SimError, Solver, State, StiffnessModel, Wind,
 };
 use hooke_gpu::{Accumulation, GpuContext, GpuError, GpuMethod, GpuSolver, gpu_required};
 
@@ -25,20 +24,40 @@ fn context() -> Option<Arc<GpuContext>> {
     }
 }
 
+/// A GPU solver of `scene`, driven by the scene's control.
+fn gpu_solver(
+    context: &Arc<GpuContext>,
+    scene: &Scene,
+    method: GpuMethod,
+) -> Result<GpuSolver, GpuError> {
+    let mut solver = GpuSolver::new(Arc::clone(context), &scene.model, &scene.material, method)?;
+    solver.set_control(&scene.control).expect("control");
+    Ok(solver)
+}
+
+/// The reference solver of `scene`, driven by the scene's control.
+fn reference(scene: &Scene) -> ReferenceSolver {
+    let mut solver = ReferenceSolver::new(&scene.model, &scene.material);
+    solver.set_control(&scene.control).expect("control");
+    solver
+}
+
+fn state_of(solver: &dyn Solver) -> State {
+    solver.read_state().expect("state reads back")
+}
+
 /// Every method this adapter supports (atomic-f32 and blend-r32f need optional features).
-fn methods(context: &Arc<GpuContext>, model: &Model, params: &SimParams) -> Vec<GpuSolver> {
+fn methods(context: &Arc<GpuContext>, scene: &Scene) -> Vec<GpuSolver> {
     GpuMethod::all()
         .into_iter()
-        .filter_map(
-            |method| match GpuSolver::new(Arc::clone(context), model, params, method) {
-                Ok(solver) => Some(solver),
-                Err(GpuError::Unsupported { .. }) => {
-                    eprintln!("{}: unsupported on {}", method.name(), context.info.name);
-                    None
-                }
-                Err(error) => panic!("{}: {error}", method.name()),
-            },
-        )
+        .filter_map(|method| match gpu_solver(context, scene, method) {
+            Ok(solver) => Some(solver),
+            Err(GpuError::Unsupported { .. }) => {
+                eprintln!("{}: unsupported on {}", method.name(), context.info.name);
+                None
+            }
+            Err(error) => panic!("{}: {error}", method.name()),
+        })
         .collect()
 }
 
@@ -69,12 +88,12 @@ fn every_method_matches_the_reference_after_100_steps() {
         (MeshSection::unit_irregular(600, 5), 600),
     ] {
         let scene = benchmark_scene(mesh, vertices);
-        let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+        let mut reference = reference(&scene);
         reference.step(100).expect("stable");
-        let expected = reference.read_state().positions;
-        for mut solver in methods(&context, &scene.model, &scene.params) {
+        let expected = state_of(&reference).positions;
+        for mut solver in methods(&context, &scene) {
             solver.step(100).expect("stable");
-            let error = relative_l2(&solver.read_state().positions, &expected);
+            let error = relative_l2(&state_of(&solver).positions, &expected);
             eprintln!(
                 "{vertices} vertices, {}: relative L2 error {error:.2e}",
                 solver.describe()
@@ -93,10 +112,9 @@ fn deterministic_methods_are_bit_identical_run_to_run() {
     let Some(context) = context() else { return };
     let scene = benchmark_scene(MeshSection::unit_irregular(500, 3), 500);
     let run = |method| {
-        let mut solver =
-            GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method).ok()?;
+        let mut solver = gpu_solver(&context, &scene, method).ok()?;
         solver.step(60).expect("stable");
-        Some(solver.read_state())
+        Some(state_of(&solver))
     };
     for method in GpuMethod::all() {
         let (Some(first), Some(second)) = (run(method), run(method)) else {
@@ -114,9 +132,9 @@ fn deterministic_methods_are_bit_identical_run_to_run() {
 fn pinned_vertices_stay_exactly_in_place() {
     let Some(context) = context() else { return };
     let scene = benchmark_scene(MeshSection::unit_grid(20, 20), 400);
-    for mut solver in methods(&context, &scene.model, &scene.params) {
+    for mut solver in methods(&context, &scene) {
         solver.step(150).expect("stable");
-        let state = solver.read_state();
+        let state = state_of(&solver);
         for (i, pinned) in scene.model.pinned.iter().enumerate() {
             if *pinned {
                 let start = scene.model.initial_positions[i].as_vec3().as_dvec3();
@@ -136,10 +154,11 @@ fn wind_drags_and_point_forces_match_the_reference() {
         rest_length_scale: 0.98,
         pinned: vec![0, 5],
     };
-    let model = Model::from_mesh(&scene.mesh, &options).expect("model");
-    let params = SimParams {
-        dt: 0.5 * hooke_core::stability::stability_limit(&model, 0.0).max_dt,
-        damping: 0.001,
+    let mut scene = scene;
+    scene.model = Model::from_mesh(&scene.mesh, &options).expect("model");
+    scene.material.dt = 0.5 * hooke_core::stability::stability_limit(&scene.model, 0.0).max_dt;
+    scene.material.damping = 0.001;
+    scene.control = hooke_core::Control {
         wind: Some(Wind {
             velocity: DVec3::new(1.0, 0.5, 2.0),
             coefficient: 0.3,
@@ -155,17 +174,16 @@ fn wind_drags_and_point_forces_match_the_reference() {
         }],
         ..Default::default()
     };
-    let mut reference = ReferenceSolver::new(&model, &params);
+    let mut reference = reference(&scene);
     reference.step(150).expect("stable");
-    let expected = reference.read_state().positions;
+    let expected = state_of(&reference).positions;
     for method in [
         GpuMethod::Gather,
         GpuMethod::Scatter(Accumulation::Incidence),
     ] {
-        let mut solver =
-            GpuSolver::new(Arc::clone(&context), &model, &params, method).expect("solver");
+        let mut solver = gpu_solver(&context, &scene, method).expect("solver");
         solver.step(150).expect("stable");
-        let error = relative_l2(&solver.read_state().positions, &expected);
+        let error = relative_l2(&state_of(&solver).positions, &expected);
         eprintln!(
             "{}: relative L2 error with all forces {error:.2e}",
             solver.describe()
@@ -178,16 +196,8 @@ fn wind_drags_and_point_forces_match_the_reference() {
 fn blow_up_names_the_first_bad_step_and_vertex() {
     let Some(context) = context() else { return };
     let mut scene = benchmark_scene(MeshSection::unit_grid(8, 8), 64);
-    scene.params.dt = 3.0 * scene.max_stable_dt;
-    let build = || {
-        GpuSolver::new(
-            Arc::clone(&context),
-            &scene.model,
-            &scene.params,
-            GpuMethod::Gather,
-        )
-        .expect("solver")
-    };
+    scene.material.dt = 3.0 * scene.max_stable_dt;
+    let build = || gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     let mut solver = build();
     let error = solver.step(100_000).expect_err("blows up");
     let SimError::NonFinite { step, vertex } = error else {
@@ -200,9 +210,9 @@ fn blow_up_names_the_first_bad_step_and_vertex() {
     replay
         .step(step as u32 - 1)
         .expect("finite before the reported step");
-    assert!(replay.read_state().positions.iter().all(|p| p.is_finite()));
+    assert!(state_of(&replay).positions.iter().all(|p| p.is_finite()));
     let _ = replay.step(1);
-    let positions = replay.read_state().positions;
+    let positions = state_of(&replay).positions;
     let first_bad = positions.iter().position(|p| !p.is_finite());
     assert_eq!(first_bad, Some(vertex), "step {step}");
 }
@@ -221,7 +231,7 @@ fn fixed_point_overflow_is_reported_not_silent() {
     options.rest_length_scale = 0.3;
     let model = Model::from_mesh(&scene.mesh, &options).expect("model");
     let method = GpuMethod::Scatter(Accumulation::AtomicFixed);
-    let mut solver = GpuSolver::new(context, &model, &scene.params, method).expect("solver");
+    let mut solver = GpuSolver::new(context, &model, &scene.material, method).expect("solver");
     let error = solver.step(5).expect_err("overflow");
     assert!(matches!(error, SimError::Overflow { .. }), "{error}");
     assert!(error.to_string().contains("fixed-point range"), "{error}");
@@ -235,10 +245,7 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
         GpuMethod::Gather,
         GpuMethod::Scatter(Accumulation::AtomicFixed),
     ] {
-        let build = || {
-            GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method)
-                .expect("solver")
-        };
+        let build = || gpu_solver(&context, &scene, method).expect("solver");
         let mut plain = build();
         plain.step(6).expect("stable");
         let mut timed = build();
@@ -247,7 +254,7 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
         for _ in 0..6 {
             let (with_timestamps, _) = timed.step_timed().expect("timed");
             let (with_clock, source) = wall.step_timed().expect("timed");
-            assert_eq!(source, hooke_gpu::TimingSource::WallClock);
+            assert_eq!(source, hooke_core::TimingSource::WallClock);
             assert!(with_clock.force_calculation > std::time::Duration::ZERO);
             assert!(with_clock.integration > std::time::Duration::ZERO);
             assert_eq!(
@@ -259,9 +266,9 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
                 method != GpuMethod::Gather
             );
         }
-        let expected = plain.read_state();
-        assert!(timed.read_state() == expected, "{}", method.name());
-        assert!(wall.read_state() == expected, "{}", method.name());
+        let expected = state_of(&plain);
+        assert!(state_of(&timed) == expected, "{}", method.name());
+        assert!(state_of(&wall) == expected, "{}", method.name());
         assert_eq!(wall.steps_taken(), 6);
     }
 }
@@ -271,13 +278,7 @@ fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
     use hooke_gpu::render::{Camera, PickAt, Picker, SceneBounds};
     let Some(context) = context() else { return };
     let scene = benchmark_scene(MeshSection::unit_grid(8, 8), 64);
-    let solver = GpuSolver::new(
-        Arc::clone(&context),
-        &scene.model,
-        &scene.params,
-        GpuMethod::Gather,
-    )
-    .expect("solver");
+    let solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     let camera = Camera::framing(&SceneBounds::of(&scene.model));
     let picker = Picker::new(&context, 64).expect("picker");
     let size = [400, 300];
@@ -323,7 +324,7 @@ fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
 
 #[test]
 fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
-    use hooke_core::test_scenes::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
+    use hooke_testkit::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
     let Some(context) = context() else { return };
     for (scene, method) in [
         (cloth_onto_ball(), GpuMethod::Gather),
@@ -333,8 +334,7 @@ fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
         ),
         (cloth_onto_capsule(), GpuMethod::Gather),
     ] {
-        let mut solver = GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method)
-            .expect("solver");
+        let mut solver = gpu_solver(&context, &scene, method).expect("solver");
         check_cloth_stays_out(&mut solver, &scene, 1e-5);
     }
 }
@@ -342,10 +342,9 @@ fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
 #[test]
 fn a_moving_ball_pushes_through_a_curtain_on_the_gpu() {
     let Some(context) = context() else { return };
-    let scene = hooke_core::test_scenes::curtain_and_moving_ball();
-    let mut solver =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
-    hooke_core::test_scenes::check_curtain_pushed(&mut solver, &scene, 1e-5);
+    let scene = hooke_testkit::curtain_and_moving_ball();
+    let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
+    hooke_testkit::check_curtain_pushed(&mut solver, &scene, 1e-5);
 }
 
 #[test]
@@ -378,24 +377,20 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
 
 #[test]
 fn gpu_self_collision_step_agrees_with_the_reference_from_a_folded_state() {
-    use hooke_core::test_scenes::folding_cloth;
+    use hooke_testkit::folding_cloth;
     let Some(context) = context() else { return };
     let scene = folding_cloth();
-    let off = SimParams {
-        self_collision: None,
-        ..scene.params.clone()
-    };
     // A state folded without self-collision: many pairs for one step to push apart.
-    let mut folder = ReferenceSolver::new(&scene.model, &off);
+    let mut folder = reference(&scene);
+    folder.set_self_collision(None).expect("off");
     folder.step(5000).expect("stable");
-    let folded = folder.read_state();
-    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
+    let folded = state_of(&folder);
+    let mut reference = reference(&scene);
     reference.write_state(&folded);
     reference.step(1).expect("stable");
-    let expected = reference.read_state();
+    let expected = state_of(&reference);
     folder.step(1).expect("stable");
-    let pushed = folder
-        .read_state()
+    let pushed = state_of(&folder)
         .positions
         .iter()
         .zip(&expected.positions)
@@ -405,35 +400,27 @@ fn gpu_self_collision_step_agrees_with_the_reference_from_a_folded_state() {
         pushed > 100,
         "only {pushed} vertices pushed by self-collision"
     );
-    let mut solver =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     solver.write_state(&folded);
     solver.step(1).expect("stable");
-    let error = relative_l2(&solver.read_state().positions, &expected.positions);
+    let error = relative_l2(&state_of(&solver).positions, &expected.positions);
     assert!(error < 1e-6, "relative L2 {error:.2e}");
 }
 
 #[test]
 fn gpu_self_collision_keeps_folded_layers_apart() {
-    use hooke_core::test_scenes::{folding_cloth, interpenetrating_pairs};
+    use hooke_testkit::{folding_cloth, interpenetrating_pairs};
     let Some(context) = context() else { return };
     let scene = folding_cloth();
-    let off = SimParams {
-        self_collision: None,
-        ..scene.params.clone()
-    };
-    let count = |params: &SimParams| {
-        let mut solver = GpuSolver::new(
-            Arc::clone(&context),
-            &scene.model,
-            params,
-            GpuMethod::Gather,
-        )
-        .expect("solver");
+    let count = |self_collision: bool| {
+        let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
+        if !self_collision {
+            solver.set_self_collision(None).expect("off");
+        }
         solver.step(5000).expect("stable");
-        interpenetrating_pairs(&scene, &solver.read_state())
+        interpenetrating_pairs(&scene, &state_of(&solver))
     };
-    let (crossed, kept) = (count(&off), count(&scene.params));
+    let (crossed, kept) = (count(false), count(true));
     assert!(crossed > 100, "only {crossed} pairs without self-collision");
     assert!(
         kept * 20 < crossed,
@@ -444,39 +431,40 @@ fn gpu_self_collision_keeps_folded_layers_apart() {
 #[test]
 fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_the_gpu() {
     let Some(context) = context() else { return };
-    let scene = hooke_core::test_scenes::ball_onto_sheet();
-    let mut solver =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
-    hooke_core::test_scenes::check_ball_dropped_on_sheet(&mut solver, &scene);
+    let scene = hooke_testkit::ball_onto_sheet();
+    let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
+    hooke_testkit::check_ball_dropped_on_sheet(&mut solver, &scene);
 }
 
 #[test]
 fn a_pushed_ball_rolls_on_the_gpu_as_on_the_reference() {
     use hooke_core::collide::{Collider, Shape};
     let Some(context) = context() else { return };
-    let mut scene = hooke_core::test_scenes::ball_onto_sheet();
+    let mut scene = hooke_testkit::ball_onto_sheet();
     // The ball sits on a ground plane beside the sheet and is pushed along x.
-    let ball = &mut scene.params.colliders[0];
+    let ball = &mut scene.model.collision.colliders[0];
     ball.shape = Shape::Sphere {
         center: DVec3::new(2.0, 0.15, 0.0),
         radius: 0.15,
     };
     ball.dynamics.as_mut().expect("dynamic").force = DVec3::new(1.0, 0.0, 0.0);
-    scene.params.colliders.push(Collider::fixed(
+    scene.model.collision.colliders.push(Collider::fixed(
         Shape::Plane {
             point: DVec3::ZERO,
             normal: DVec3::Y,
         },
         0.5,
     ));
-    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
-    let mut gpu =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let mut reference = reference(&scene);
+    let mut gpu = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     reference.step(2000).expect("stable");
     gpu.step(2000).expect("stable");
-    let (expected, actual) = (reference.colliders()[0], gpu.colliders()[0]);
+    let (expected, actual) = (
+        reference.colliders().expect("colliders")[0],
+        gpu.colliders().expect("colliders")[0],
+    );
     // Rolling: 5/7 of F/m, spinning about -z at v/r.
-    let t = 2000.0 * scene.params.dt;
+    let t = 2000.0 * scene.material.dt;
     let rolling = 5.0 / 7.0 * 1.0 / 0.2 * t;
     assert!(
         (expected.velocity.x - rolling).abs() < 0.02 * rolling,
@@ -501,30 +489,32 @@ fn a_keyframed_collider_moves_the_same_on_the_gpu_as_on_the_reference() {
     )))
     .and_then(|file| file.build(Path::new("ball-through-curtain"), false))
     .expect("scene");
-    assert!(scene.params.colliders[1].path.is_some());
-    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
-    let mut gpu =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    assert!(scene.model.collision.colliders[1].path.is_some());
+    let mut reference = reference(&scene);
+    let mut gpu = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     // Past the first keyframes, into the path's second lap; the cloth stays out of both balls
     // where the path puts them (a wrong path on the GPU would leave cloth inside).
     let batch = 200;
-    let steps = (4.6 / scene.params.dt) as u32 / batch * batch;
-    let thickness = scene.params.collision_thickness;
+    let steps = (4.6 / scene.material.dt) as u32 / batch * batch;
+    let thickness = scene.model.collision.thickness;
     for _ in 0..steps / batch {
         reference.step(batch).expect("stable");
         gpu.step(batch).expect("stable");
-        let balls = reference.colliders();
-        for p in gpu.read_state().positions {
+        let balls = reference.colliders().expect("colliders");
+        for p in state_of(&gpu).positions {
             for ball in &balls {
                 let clearance = ball.shape.clearance(p);
                 assert!(clearance > thickness - 1e-5, "{clearance} at {p}");
             }
         }
     }
-    let (expected, actual) = (reference.colliders()[1], gpu.colliders()[1]);
+    let (expected, actual) = (
+        reference.colliders().expect("colliders")[1],
+        gpu.colliders().expect("colliders")[1],
+    );
     assert_eq!(expected, actual);
     // Second lap, first leg: from z = 0.4 toward -0.3 in 1.5 s.
-    let t = f64::from(steps) * scene.params.dt;
+    let t = f64::from(steps) * scene.material.dt;
     let on_path = DVec3::new(0.3, 1.2, 0.4 - 0.7 * (t - 4.0) / 1.5);
     let off = expected.shape.clearance(on_path) + 0.1;
     assert!(
@@ -533,10 +523,7 @@ fn a_keyframed_collider_moves_the_same_on_the_gpu_as_on_the_reference() {
     );
     // The cloth the balls swept: contact makes float32 and float64 runs drift apart (the CPU
     // solver is 9e-3 from the reference here too), so the bar is that band, not 1e-5.
-    let error = relative_l2(
-        &gpu.read_state().positions,
-        &reference.read_state().positions,
-    );
+    let error = relative_l2(&state_of(&gpu).positions, &state_of(&reference).positions);
     assert!(error < 2e-2, "relative L2 {error:.2e}");
 }
 
@@ -549,13 +536,17 @@ fn the_fig4_balls_move_the_same_on_the_gpu_as_on_the_reference() {
     )))
     .and_then(|file| file.build(Path::new("wind-and-balls"), false))
     .expect("scene");
-    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
-    let mut gpu =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let mut reference = reference(&scene);
+    let mut gpu = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     // Three balls land on the sheet, roll into each other and are pushed (0.6 s).
     reference.step(3000).expect("stable");
     gpu.step(3000).expect("stable");
-    for (expected, actual) in reference.colliders().iter().zip(gpu.colliders()) {
+    for (expected, actual) in reference
+        .colliders()
+        .expect("colliders")
+        .iter()
+        .zip(gpu.colliders().expect("colliders"))
+    {
         let gap = expected.anchor().distance(actual.anchor());
         assert!(
             gap < 5e-3,
@@ -570,9 +561,8 @@ fn the_fig4_balls_move_the_same_on_the_gpu_as_on_the_reference() {
 #[test]
 fn a_ball_leaving_the_numbers_is_reported_on_the_gpu() {
     let Some(context) = context() else { return };
-    let scene = hooke_core::test_scenes::exploding_ball();
-    let mut solver =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let scene = hooke_testkit::exploding_ball();
+    let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     let error = solver.step(5).expect_err("the ball explodes");
     assert_eq!(
         error,
@@ -587,15 +577,15 @@ fn a_ball_leaving_the_numbers_is_reported_on_the_gpu() {
 fn a_ball_comes_to_rest_on_a_capsule_on_the_gpu_as_on_the_reference() {
     use hooke_core::collide::{Collider, Shape};
     let Some(context) = context() else { return };
-    let mut scene = hooke_core::test_scenes::ball_onto_sheet();
+    let mut scene = hooke_testkit::ball_onto_sheet();
     // Beside the sheet, the ball drops 0.2 m onto a bar along z (radii 0.15 and 0.05 m).
-    let ball = &mut scene.params.colliders[0];
+    let ball = &mut scene.model.collision.colliders[0];
     ball.shape = Shape::Sphere {
         center: DVec3::new(2.0, 0.6, 0.0),
         radius: 0.15,
     };
     ball.dynamics.as_mut().expect("dynamic").restitution = 0.0;
-    scene.params.colliders.push(Collider::fixed(
+    scene.model.collision.colliders.push(Collider::fixed(
         Shape::Capsule {
             start: DVec3::new(2.0, 0.2, -1.0),
             end: DVec3::new(2.0, 0.2, 1.0),
@@ -603,12 +593,14 @@ fn a_ball_comes_to_rest_on_a_capsule_on_the_gpu_as_on_the_reference() {
         },
         1.0,
     ));
-    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
-    let mut gpu =
-        GpuSolver::new(context, &scene.model, &scene.params, GpuMethod::Gather).expect("solver");
+    let mut reference = reference(&scene);
+    let mut gpu = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     reference.step(3000).expect("stable");
     gpu.step(3000).expect("stable");
-    let (expected, actual) = (reference.colliders()[0], gpu.colliders()[0]);
+    let (expected, actual) = (
+        reference.colliders().expect("colliders")[0],
+        gpu.colliders().expect("colliders")[0],
+    );
     // Resting on top of the bar: centre 0.2 m above its axis.
     let on_top = DVec3::new(2.0, 0.4, 0.0);
     assert!(

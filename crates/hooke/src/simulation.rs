@@ -1,13 +1,22 @@
-//! The [`Simulation`] facade: one type over every solver.
+//! The [`Simulation`] facade: one type over the reference, CPU and GPU solvers, with every call a
+//! front end needs (build, step, read, drive live, time, draw).
 
 use std::sync::Arc;
 
+use glam::DVec3;
 use hooke_core::collide::Collider;
+use hooke_core::mesh::{Mesh, MeshError};
 use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::Scene;
-use hooke_core::{Model, SimError, SimParams, Solver, State};
-use hooke_cpu::{CpuError, CpuOptions, CpuSolver};
-use hooke_gpu::{GpuContext, GpuError, GpuMethod, GpuSolver};
+use hooke_core::selfcollide::SelfCollision;
+use hooke_core::stability::{StabilityLimit, stability_limit};
+use hooke_core::{
+    Control, MassModel, Material, Model, ModelError, ModelOptions, PhaseTimes, SimError, Snapshot,
+    Solver, State, StiffnessModel, TimingSource,
+};
+use hooke_cpu::{CpuError, CpuOptions, CpuSolver, MemoryUse};
+use hooke_gpu::wgpu;
+use hooke_gpu::{GpuContext, GpuError, GpuMemory, GpuMethod, GpuSolver, positions_to_vec4};
 
 /// Which solver a [`Simulation`] runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,70 +29,413 @@ pub enum SolverChoice {
     Gpu(GpuMethod),
 }
 
-/// A simulation could not be built.
+impl SolverChoice {
+    /// `"reference"`, `"cpu gather"`, `"gpu scatter/incidence"`...
+    pub fn name(&self) -> String {
+        match self {
+            Self::Reference => "reference".to_owned(),
+            Self::Cpu(options) => format!("cpu {}", options.method.name()),
+            Self::Gpu(method) => format!("gpu {}", method.name()),
+        }
+    }
+}
+
+/// A simulation could not be built or changed.
 #[derive(Debug, thiserror::Error)]
 pub enum EngineError {
     #[error("starting the cpu solver: {0}")]
     Cpu(#[from] CpuError),
     #[error("starting the gpu solver: {0}")]
     Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error(transparent)]
+    Simulation(#[from] SimError),
 }
 
-/// A model and the solver that advances it.
+/// A mesh and material given as arrays, for [`model_from_arrays`].
+#[derive(Clone, Debug)]
+pub struct Arrays<'a> {
+    /// Vertex positions, m.
+    pub vertices: &'a [[f64; 3]],
+    /// Triangles as vertex indices; every unique edge becomes a spring.
+    pub triangles: &'a [[u32; 3]],
+    /// Vertices held in place.
+    pub pins: &'a [u32],
+    pub stiffness: StiffnessModel,
+    pub mass: MassModel,
+}
+
+/// A model from arrays, checked as a mesh file is (indices in range, no degenerate triangles).
+pub fn model_from_arrays(arrays: &Arrays<'_>) -> Result<Model, EngineError> {
+    let mesh = Mesh {
+        positions: arrays
+            .vertices
+            .iter()
+            .map(|v| DVec3::from_array(*v))
+            .collect(),
+        triangles: arrays.triangles.to_vec(),
+    };
+    mesh.validate("arrays")?;
+    let options = ModelOptions {
+        stiffness: arrays.stiffness,
+        mass: arrays.mass,
+        rest_length_scale: 1.0,
+        pinned: arrays.pins.to_vec(),
+    };
+    Ok(Model::from_mesh(&mesh, &options)?)
+}
+
+/// Bytes a solver holds, by role.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemoryReport {
+    /// The reference keeps f64 state and a force buffer; not a figure worth comparing.
+    Reference,
+    Cpu(MemoryUse),
+    Gpu(GpuMemory),
+}
+
+enum Engine {
+    Reference(Box<ReferenceSolver>),
+    /// With the buffer the positions are uploaded into for drawing, once asked for.
+    Cpu(Box<CpuSolver>, Option<wgpu::Buffer>),
+    Gpu(Box<GpuSolver>),
+}
+
+/// A model and the solver that advances it. Every front end (the CLI, the viewer, Python, the
+/// browser) drives hooke through this type.
 pub struct Simulation {
-    solver: Box<dyn Solver>,
+    model: Model,
+    material: Material,
+    control: Control,
+    self_collision: Option<SelfCollision>,
+    choice: SolverChoice,
+    /// The GPU the solver runs on, or that positions are uploaded to for drawing.
+    gpu: Option<Arc<GpuContext>>,
+    engine: Engine,
 }
 
 impl std::fmt::Debug for Simulation {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.solver.describe())
+        f.write_str(&self.describe())
     }
 }
 
 impl Simulation {
-    /// A simulation of `model` under `params` on the chosen solver. A GPU solver uses `gpu`, or
-    /// opens the default adapter when it is `None`.
+    /// A simulation of `model` under `material` on the chosen solver, at rest at the model's
+    /// initial positions. A GPU solver uses `gpu`, or opens the default adapter when it is
+    /// `None`; a CPU one uses `gpu` only to upload positions for drawing.
     pub fn new(
         model: &Model,
-        params: &SimParams,
+        material: &Material,
         choice: SolverChoice,
         gpu: Option<Arc<GpuContext>>,
     ) -> Result<Self, EngineError> {
-        let solver: Box<dyn Solver> = match choice {
-            SolverChoice::Reference => Box::new(ReferenceSolver::new(model, params)),
-            SolverChoice::Cpu(options) => Box::new(CpuSolver::new(model, params, options)?),
-            SolverChoice::Gpu(method) => {
-                let context = match gpu {
-                    Some(context) => context,
-                    None => GpuContext::new()?,
-                };
-                Box::new(GpuSolver::new(context, model, params, method)?)
-            }
+        let gpu = match (choice, gpu) {
+            (SolverChoice::Gpu(_), None) => Some(GpuContext::new()?),
+            (_, gpu) => gpu,
         };
-        Ok(Self { solver })
+        let engine = build(model, material, choice, gpu.as_ref())?;
+        Ok(Self {
+            model: model.clone(),
+            material: *material,
+            control: Control::default(),
+            self_collision: model.collision.self_collision,
+            choice,
+            gpu,
+            engine,
+        })
     }
 
-    /// A simulation of a built scene.
+    /// A simulation of a built scene, driven by the scene's own control (wind, forces, drags).
     pub fn from_scene(
         scene: &Scene,
         choice: SolverChoice,
         gpu: Option<Arc<GpuContext>>,
     ) -> Result<Self, EngineError> {
-        Self::new(&scene.model, &scene.params, choice, gpu)
+        let mut simulation = Self::new(&scene.model, &scene.material, choice, gpu)?;
+        simulation.set_control(scene.control.clone())?;
+        Ok(simulation)
+    }
+
+    fn solver(&self) -> &dyn Solver {
+        match &self.engine {
+            Engine::Reference(s) => s.as_ref(),
+            Engine::Cpu(s, _) => s.as_ref(),
+            Engine::Gpu(s) => s.as_ref(),
+        }
+    }
+
+    fn solver_mut(&mut self) -> &mut dyn Solver {
+        match &mut self.engine {
+            Engine::Reference(s) => s.as_mut(),
+            Engine::Cpu(s, _) => s.as_mut(),
+            Engine::Gpu(s) => s.as_mut(),
+        }
+    }
+
+    /// A short description such as `"cpu scatter (f32, 2 threads)"`.
+    pub fn describe(&self) -> String {
+        self.solver().describe()
+    }
+
+    pub fn choice(&self) -> SolverChoice {
+        self.choice
+    }
+
+    /// The model, its collision set-up included (its stiffnesses before the material's scale).
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    pub fn control(&self) -> &Control {
+        &self.control
+    }
+
+    pub fn self_collision(&self) -> Option<SelfCollision> {
+        self.self_collision
+    }
+
+    /// The GPU this simulation runs on or draws with.
+    pub fn gpu(&self) -> Option<&Arc<GpuContext>> {
+        self.gpu.as_ref()
     }
 
     /// Advances `steps` time steps.
     pub fn step(&mut self, steps: u32) -> Result<(), SimError> {
-        self.solver.step(steps)
+        self.solver_mut().step(steps)
+    }
+
+    /// One step with each phase timed; results equal [`Simulation::step`]'s.
+    pub fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError> {
+        self.solver_mut().step_timed()
+    }
+
+    pub fn steps_taken(&self) -> u64 {
+        self.solver().steps_taken()
+    }
+
+    /// The simulated time, s (steps times the current dt).
+    pub fn time(&self) -> f64 {
+        self.steps_taken() as f64 * self.material.dt
     }
 
     /// The current state (a read-back on the GPU).
     pub fn state(&self) -> Result<State, SimError> {
-        Ok(self.solver.read_state())
+        self.solver().read_state()
     }
 
-    /// The colliders where they are now.
-    pub fn colliders(&self) -> Result<Vec<Collider>, SimError> {
-        Ok(self.solver.colliders())
+    /// Replaces the state (positions and previous positions).
+    pub fn set_state(&mut self, state: &State) {
+        self.solver_mut().write_state(state);
     }
+
+    /// The colliders where they are now (a read-back on the GPU when there are dynamic balls).
+    pub fn colliders(&self) -> Result<Vec<Collider>, SimError> {
+        self.solver().colliders()
+    }
+
+    /// Takes new per-step inputs: written into the solver's existing buffers, nothing rebuilt.
+    pub fn set_control(&mut self, control: Control) -> Result<(), SimError> {
+        self.solver_mut().set_control(&control)?;
+        self.control = control;
+        Ok(())
+    }
+
+    /// Takes a new dt, damping, gravity or stiffness scale, in place: nothing rebuilt, nothing
+    /// read back.
+    pub fn set_material(&mut self, material: Material) -> Result<(), SimError> {
+        self.solver_mut().set_material(&material)?;
+        self.material = material;
+        Ok(())
+    }
+
+    /// Turns self-collision on or off (a change of set-up: the GPU builds its pass here).
+    pub fn set_self_collision(&mut self, config: Option<SelfCollision>) -> Result<(), SimError> {
+        self.solver_mut().set_self_collision(config)?;
+        self.self_collision = config;
+        Ok(())
+    }
+
+    /// The state, colliders and step counter, to continue from later.
+    pub fn snapshot(&self) -> Result<Snapshot, SimError> {
+        self.solver().snapshot()
+    }
+
+    /// Continues from a snapshot of this model.
+    pub fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError> {
+        self.solver_mut().restore(snapshot)
+    }
+
+    /// Moves the running simulation onto another solver, carrying on where it is.
+    pub fn switch_solver(&mut self, choice: SolverChoice) -> Result<(), EngineError> {
+        let snapshot = self.snapshot()?;
+        let gpu = match (choice, &self.gpu) {
+            (SolverChoice::Gpu(_), None) => Some(GpuContext::new()?),
+            (_, gpu) => gpu.clone(),
+        };
+        let mut engine = build(&self.model, &self.material, choice, gpu.as_ref())?;
+        let solver: &mut dyn Solver = match &mut engine {
+            Engine::Reference(s) => s.as_mut(),
+            Engine::Cpu(s, _) => s.as_mut(),
+            Engine::Gpu(s) => s.as_mut(),
+        };
+        solver.set_control(&self.control)?;
+        solver.set_self_collision(self.self_collision)?;
+        solver.restore(&snapshot)?;
+        self.engine = engine;
+        self.choice = choice;
+        self.gpu = gpu;
+        Ok(())
+    }
+
+    /// The largest stable dt under the current damping and stiffness scale.
+    pub fn stability_limit(&self) -> StabilityLimit {
+        self.stability_limit_under(&self.material)
+    }
+
+    /// The largest stable dt under `material`'s damping and stiffness scale.
+    pub fn stability_limit_under(&self, material: &Material) -> StabilityLimit {
+        let scaled;
+        let model = if material.stiffness_scale == 1.0 {
+            &self.model
+        } else {
+            scaled = self.model.with_stiffness_scale(material.stiffness_scale);
+            &scaled
+        };
+        stability_limit(model, material.damping)
+    }
+
+    /// The bytes the solver holds, by role.
+    pub fn memory(&self) -> MemoryReport {
+        match &self.engine {
+            Engine::Reference(_) => MemoryReport::Reference,
+            Engine::Cpu(s, _) => MemoryReport::Cpu(s.memory()),
+            Engine::Gpu(s) => MemoryReport::Gpu(s.memory()),
+        }
+    }
+
+    /// The CPU solver, for what only it offers (thread count, bandwidth floor).
+    pub fn cpu_solver(&self) -> Option<&CpuSolver> {
+        match &self.engine {
+            Engine::Cpu(s, _) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// The GPU solver, for what only it offers (wall-clock timing, status read-backs).
+    pub fn gpu_solver_mut(&mut self) -> Option<&mut GpuSolver> {
+        match &mut self.engine {
+            Engine::Gpu(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// Advances `steps` steps for a frame that draws: on the GPU they are recorded into
+    /// `encoder` (nothing waits); on the CPU they run now and the positions are uploaded into
+    /// [`Simulation::positions_buffer`].
+    pub fn encode_frame(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        steps: u32,
+    ) -> Result<(), SimError> {
+        let gpu = self.gpu.clone();
+        match &mut self.engine {
+            Engine::Gpu(solver) => {
+                solver.encode_steps(encoder, steps);
+                Ok(())
+            }
+            Engine::Cpu(solver, upload) => {
+                solver.step(steps)?;
+                let state = solver.read_state()?;
+                upload_positions(gpu.as_deref(), upload, &state.positions)
+            }
+            Engine::Reference(solver) => {
+                solver.step(steps)?;
+                Ok(())
+            }
+        }
+    }
+
+    /// The `vec4`-per-vertex buffer to draw: the GPU solver's current positions, or the CPU
+    /// positions uploaded by [`Simulation::encode_frame`].
+    pub fn positions_buffer(&self) -> Option<&wgpu::Buffer> {
+        match &self.engine {
+            Engine::Gpu(solver) => Some(solver.current_positions()),
+            Engine::Cpu(_, upload) => upload.as_ref(),
+            Engine::Reference(_) => None,
+        }
+    }
+
+    /// Records copies of the GPU's dynamic ball places into a renderer's sphere buffer; on the
+    /// CPU the renderer is given the colliders instead.
+    pub fn copy_spheres(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::Buffer) {
+        if let Engine::Gpu(solver) = &self.engine {
+            solver.copy_spheres(encoder, target);
+        }
+    }
+
+    /// The colliders to draw this frame without waiting for the GPU: scripted ones placed by
+    /// time (the GPU's dynamic balls come in by [`Simulation::copy_spheres`]).
+    pub fn colliders_to_draw(&self) -> Vec<Collider> {
+        match &self.engine {
+            Engine::Gpu(_) => {
+                hooke_core::collide::placed(&self.model.collision.colliders, self.time())
+            }
+            _ => self.colliders().unwrap_or_default(),
+        }
+    }
+}
+
+/// Copies positions into the draw buffer, creating it on first use.
+fn upload_positions(
+    gpu: Option<&GpuContext>,
+    upload: &mut Option<wgpu::Buffer>,
+    positions: &[DVec3],
+) -> Result<(), SimError> {
+    let Some(context) = gpu else {
+        return Ok(());
+    };
+    let buffer = upload.get_or_insert_with(|| {
+        context.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cpu positions upload"),
+            size: 16 * positions.len().max(1) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
+    context.queue.write_buffer(
+        buffer,
+        0,
+        bytemuck::cast_slice(&positions_to_vec4(positions)),
+    );
+    Ok(())
+}
+
+fn build(
+    model: &Model,
+    material: &Material,
+    choice: SolverChoice,
+    gpu: Option<&Arc<GpuContext>>,
+) -> Result<Engine, EngineError> {
+    Ok(match choice {
+        SolverChoice::Reference => {
+            Engine::Reference(Box::new(ReferenceSolver::new(model, material)))
+        }
+        SolverChoice::Cpu(options) => {
+            Engine::Cpu(Box::new(CpuSolver::new(model, material, options)?), None)
+        }
+        SolverChoice::Gpu(method) => {
+            let context = gpu
+                .cloned()
+                .ok_or_else(|| GpuError::Validation("no GPU context".into()))?;
+            Engine::Gpu(Box::new(GpuSolver::new(context, model, material, method)?))
+        }
+    })
 }

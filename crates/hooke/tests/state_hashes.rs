@@ -3,9 +3,10 @@
 //! state recorded in `state-hashes.txt` (a SHA-256 of the final positions, previous positions and
 //! collider states, bit for bit).
 //!
-//! The GPU hashes hold for the adapter named in the file's header (Mesa's lavapipe, which CI
-//! uses); another adapter rounds differently, so there the GPU rows are listed as not compared
-//! and the CPU and reference rows still are. `HOOKE_BLESS=1` records the current hashes.
+//! The GPU hashes hold for the adapter named in the file's header (Mesa's lavapipe on Vulkan,
+//! which `./run test` installs and CI uses); another adapter, llvmpipe over GL included, rounds
+//! differently, so there the GPU rows are listed as not compared and the CPU and reference rows
+//! still are. `HOOKE_BLESS=1` records the current hashes.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -17,8 +18,9 @@ use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod, gpu_required};
 use sha2::{Digest, Sha256};
 
-/// The adapter whose rounding the GPU hashes record.
+/// The adapter whose rounding the GPU hashes record: Mesa's lavapipe (llvmpipe on Vulkan).
 const RECORDED_ADAPTER: &str = "llvmpipe";
+const RECORDED_BACKEND: hooke_gpu::wgpu::Backend = hooke_gpu::wgpu::Backend::Vulkan;
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes")
@@ -72,13 +74,10 @@ fn hash_of(simulation: &Simulation) -> String {
             hasher.update(x.to_le_bytes());
         }
     }
-    hasher
-        .finalize()
-        .iter()
-        .fold(String::new(), |mut s, b| {
-            let _ = write!(s, "{b:02x}");
-            s
-        })
+    hasher.finalize().iter().fold(String::new(), |mut s, b| {
+        let _ = write!(s, "{b:02x}");
+        s
+    })
 }
 
 fn read_record() -> BTreeMap<String, String> {
@@ -102,15 +101,15 @@ fn every_shipped_scene_ends_in_its_recorded_state_on_every_solver() {
             None
         }
     };
-    let gpu_comparable = context
-        .as_ref()
-        .is_some_and(|c| c.info.name.contains(RECORDED_ADAPTER));
+    let gpu_comparable = context.as_ref().is_some_and(|c| {
+        c.info.name.contains(RECORDED_ADAPTER) && c.info.backend == RECORDED_BACKEND
+    });
     if let Some(context) = &context
         && !gpu_comparable
     {
         eprintln!(
-            "GPU rows not compared: recorded on {RECORDED_ADAPTER}, this adapter is {}",
-            context.info.name
+            "GPU rows not compared: recorded on {RECORDED_ADAPTER} ({RECORDED_BACKEND:?}), this adapter is {}",
+            context.describe()
         );
     }
     let mut paths: Vec<PathBuf> = std::fs::read_dir(scenes_dir())
@@ -137,15 +136,12 @@ fn every_shipped_scene_ends_in_its_recorded_state_on_every_solver() {
             simulation
                 .step(steps)
                 .unwrap_or_else(|e| panic!("{name} {solver}: {e}"));
-            actual.insert(
-                format!("{name} {solver} {steps}"),
-                hash_of(&simulation),
-            );
+            actual.insert(format!("{name} {solver} {steps}"), hash_of(&simulation));
         }
     }
     if std::env::var("HOOKE_BLESS").is_ok_and(|v| v == "1") {
         let mut text = format!(
-            "# scene solver steps sha256 (GPU rows on {RECORDED_ADAPTER}); HOOKE_BLESS=1 rewrites\n"
+            "# scene solver steps sha256 (GPU rows on {RECORDED_ADAPTER}, {RECORDED_BACKEND:?}); HOOKE_BLESS=1 rewrites\n"
         );
         for (key, hash) in &actual {
             let _ = writeln!(text, "{key} {hash}");
@@ -170,5 +166,9 @@ fn every_shipped_scene_ends_in_its_recorded_state_on_every_solver() {
         differing.join("\n")
     );
     let expected_rows = paths.len() * if gpu_comparable { 6 } else { 3 };
-    assert_eq!(actual.len(), expected_rows, "every scene on every solver ran");
+    assert_eq!(
+        actual.len(),
+        expected_rows,
+        "every scene on every solver ran"
+    );
 }

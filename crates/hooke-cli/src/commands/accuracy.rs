@@ -10,12 +10,12 @@ use std::sync::Arc;
 
 use clap::Args;
 use comfy_table::Table;
+use hooke::{Simulation, SolverChoice};
+use hooke_core::State;
 use hooke_core::diagnostics::{energy, relative_l2};
-use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::Scene;
-use hooke_core::{Solver, State};
-use hooke_cpu::{CpuOptions, CpuSolver, Method};
-use hooke_gpu::{GpuMethod, GpuSolver};
+use hooke_cpu::{CpuOptions, Method};
+use hooke_gpu::GpuMethod;
 use serde::Serialize;
 
 use crate::format::{OutputFormat, table};
@@ -61,34 +61,29 @@ struct Report {
 
 pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     let scene = load_scene(&args.scene, args.allow_unstable)?;
-    let mut reference = ReferenceSolver::new(&scene.model, &scene.params);
-    let initial = reference.read_state();
+    let mut reference = Simulation::from_scene(&scene, SolverChoice::Reference, None)?;
+    let initial = reference.state()?;
     reference.step(args.steps)?;
-    let expected = reference.read_state();
-    let e0 = energy(&scene.model, &initial, &scene.params).total();
-    let drift = |state: &State| energy(&scene.model, state, &scene.params).total() - e0;
-    let mut solvers: Vec<(String, anyhow::Result<Box<dyn Solver>>)> = Method::ALL
+    let expected = reference.state()?;
+    let e0 = energy(&scene.model, &initial, &scene.material).total();
+    let drift = |state: &State| energy(&scene.model, state, &scene.material).total() - e0;
+    let mut solvers: Vec<(String, anyhow::Result<Simulation>)> = Method::ALL
         .iter()
         .map(|&method| {
-            let options = CpuOptions {
+            let choice = SolverChoice::Cpu(CpuOptions {
                 method,
                 ..Default::default()
-            };
-            let solver = CpuSolver::new(&scene.model, &scene.params, options)
-                .map(|s| Box::new(s) as Box<dyn Solver>)
-                .map_err(anyhow::Error::from);
-            (format!("cpu {}", method.name()), solver)
+            });
+            let simulation = Simulation::from_scene(&scene, choice, None);
+            (choice.name(), simulation.map_err(anyhow::Error::from))
         })
         .collect();
     if !args.no_gpu {
         match open_gpu() {
             Ok(context) => solvers.extend(GpuMethod::all().into_iter().map(|method| {
-                let solver =
-                    GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method);
-                let solver = solver
-                    .map(|s| Box::new(s) as Box<dyn Solver>)
-                    .map_err(anyhow::Error::from);
-                (format!("gpu {}", method.name()), solver)
+                let choice = SolverChoice::Gpu(method);
+                let simulation = Simulation::from_scene(&scene, choice, Some(Arc::clone(&context)));
+                (choice.name(), simulation.map_err(anyhow::Error::from))
             })),
             Err(error) => eprintln!("gpu methods skipped: {error:#}"),
         }
@@ -113,7 +108,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
 
 fn measure(
     name: String,
-    solver: anyhow::Result<Box<dyn Solver>>,
+    solver: anyhow::Result<Simulation>,
     steps: u32,
     expected: &State,
     drift: &dyn Fn(&State) -> f64,
@@ -132,7 +127,10 @@ fn measure(
     if let Err(error) = solver.step(steps) {
         return failed(error.to_string());
     }
-    let state = solver.read_state();
+    let state = match solver.state() {
+        Ok(state) => state,
+        Err(error) => return failed(error.to_string()),
+    };
     let errors: Vec<f64> = state
         .positions
         .iter()
@@ -154,7 +152,7 @@ fn print_report(report: &Report, scene: &Scene) {
         report.scene,
         report.vertices,
         report.steps,
-        scene.params.dt,
+        scene.material.dt,
         report.reference_energy_change_j
     );
     let mut t = Table::new();

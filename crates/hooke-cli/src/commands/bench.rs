@@ -17,15 +17,15 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use comfy_table::Table;
-use hooke_core::Solver;
+use hooke::{EngineError, MemoryReport, Simulation, SolverChoice};
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::selfcollide::{self, SelfCollision};
+use hooke_core::{PhaseTimes, TimingSource};
 use hooke_cpu::kernels::InstructionSet;
-use hooke_cpu::{CpuOptions, CpuSolver, Method, PhaseTimes};
-use hooke_gpu::{GpuError, GpuMethod, GpuSolver, TimingSource};
+use hooke_cpu::{CpuOptions, Method};
+use hooke_gpu::{GpuError, GpuMethod};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::sync::Arc;
 
 use crate::format::{OutputFormat, bytes, table};
 use crate::solvers::{MethodArg, OrderArg, open_gpu};
@@ -140,46 +140,37 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 "--self-collision: {grids} grids is outside 1..={}",
                 selfcollide::MAX_GRIDS
             );
-            scene.params.self_collision = Some(SelfCollision {
+            scene.model.collision.self_collision = Some(SelfCollision {
                 grids,
                 ..SelfCollision::for_model(&scene.model)
             });
         }
-        if let Some(context) = &gpu {
-            for method in GpuMethod::all() {
-                let mut solver = match GpuSolver::new(
-                    Arc::clone(context),
-                    &scene.model,
-                    &scene.params,
-                    method,
-                ) {
-                    Ok(solver) => solver,
-                    Err(GpuError::Unsupported { .. }) => continue,
-                    Err(error) => {
-                        return Err(error)
-                            .with_context(|| format!("{name}, gpu {}", method.name()));
-                    }
-                };
-                let row = measure_gpu(&name, &scene, &mut solver, args)
-                    .with_context(|| format!("{name}, {}", solver.describe()))?;
-                if args.format == OutputFormat::Table {
-                    eprintln!("  {name} gpu {}: {:.3} ms/step", row.method, row.total_ms);
-                }
-                rows.push(row);
-            }
-        }
-        for method in args.methods.iter().filter(|_| run_cpu) {
-            let options = CpuOptions {
+        let gpu_choices = gpu
+            .iter()
+            .flat_map(|_| GpuMethod::all().into_iter().map(SolverChoice::Gpu));
+        let cpu_choices = args.methods.iter().filter(|_| run_cpu).map(|method| {
+            SolverChoice::Cpu(CpuOptions {
                 method: (*method).into(),
                 threads: Some(threads),
                 order: args.order.into(),
                 ..Default::default()
+            })
+        });
+        for choice in gpu_choices.chain(cpu_choices) {
+            let mut simulation = match Simulation::from_scene(&scene, choice, gpu.clone()) {
+                Ok(simulation) => simulation,
+                Err(EngineError::Gpu(GpuError::Unsupported { .. })) => continue,
+                Err(error) => {
+                    return Err(error).with_context(|| format!("{name}, {}", choice.name()));
+                }
             };
-            let mut solver = CpuSolver::new(&scene.model, &scene.params, options)?;
-            let row = measure(&name, &scene, &mut solver, args, &copy_pool)
-                .with_context(|| format!("{name}, {}", solver.describe()))?;
+            let row = measure(&name, &scene, &mut simulation, args, &copy_pool)
+                .with_context(|| format!("{name}, {}", simulation.describe()))?;
             if args.format == OutputFormat::Table {
-                eprintln!("  {name} {}: {:.3} ms/step", row.method, row.total_ms);
+                eprintln!(
+                    "  {name} {} {}: {:.3} ms/step",
+                    row.backend, row.method, row.total_ms
+                );
             }
             rows.push(row);
         }
@@ -249,87 +240,74 @@ impl PhaseMedians {
 }
 
 /// Median time per step of `--steps` steps after `--warmup`, timed in batches as `hooke run`
-/// steps (a lone step would also time waking the CPU's worker threads).
-fn median_step_ms(solver: &mut dyn Solver, args: &BenchArgs) -> anyhow::Result<f64> {
-    solver.step(args.warmup)?;
+/// steps (a lone step would also time waking the CPU's worker threads). On the GPU each batch
+/// includes one small status read-back, as every `hooke run` batch has.
+fn median_step_ms(simulation: &mut Simulation, args: &BenchArgs) -> anyhow::Result<f64> {
+    simulation.step(args.warmup)?;
     let batches = args.steps.div_ceil(STEPS_PER_SAMPLE);
     let mut totals = Vec::with_capacity(batches as usize);
     for _ in 0..batches {
         let start = Instant::now();
-        solver.step(STEPS_PER_SAMPLE)?;
+        simulation.step(STEPS_PER_SAMPLE)?;
         totals.push(start.elapsed() / STEPS_PER_SAMPLE);
     }
     Ok(median(totals))
 }
 
+/// One row: the fused step's median, then `--steps` phase-timed steps, on any solver.
 fn measure(
     name: &str,
     scene: &Scene,
-    solver: &mut CpuSolver,
+    simulation: &mut Simulation,
     args: &BenchArgs,
     copy_pool: &rayon::ThreadPool,
 ) -> anyhow::Result<Row> {
-    let total_ms = median_step_ms(solver, args)?;
-    let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
-    for _ in 0..args.steps {
-        phases.push(solver.step_phased()?);
-    }
-    let bytes_per_step = solver.bytes_per_step();
-    let bandwidth = copy_bandwidth(bytes_per_step, copy_pool);
-    let method = solver.options().method;
-    let medians = PhaseMedians::of(&phases, method == Method::Scatter, scene.params.collides());
-    Ok(Row {
-        mesh: name.to_owned(),
-        vertices: scene.model.vertex_count(),
-        springs: scene.model.spring_count(),
-        backend: "cpu",
-        method: method.name().to_owned(),
-        threads: solver.threads(),
-        phase_timing: "wall clock",
-        force_calculation_ms: medians.force_calculation,
-        force_accumulation_ms: medians.force_accumulation,
-        integration_ms: medians.integration,
-        collision_ms: medians.collision,
-        phased_total_ms: medians.total,
-        total_ms,
-        springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
-        bytes_per_step,
-        copy_bandwidth_gb_per_s: Some(bandwidth / 1e9),
-        bandwidth_floor_ms: Some(1e3 * bytes_per_step as f64 / bandwidth),
-        dt_above_stability_bound: scene.params.dt > scene.max_stable_dt,
-    })
-}
-
-fn measure_gpu(
-    name: &str,
-    scene: &Scene,
-    solver: &mut GpuSolver,
-    args: &BenchArgs,
-) -> anyhow::Result<Row> {
-    // On the GPU each batch includes one small status read-back, as every `hooke run` batch has.
-    let total_ms = median_step_ms(solver, args)?;
+    let total_ms = median_step_ms(simulation, args)?;
     let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
     let mut source = TimingSource::WallClock;
     for _ in 0..args.steps {
-        let (times, from) = solver.step_timed()?;
+        let (times, from) = simulation.step_timed()?;
         phases.push(times);
         source = from;
     }
-    let memory = solver.memory();
     let timing = match source {
         TimingSource::Timestamps => "gpu timestamps",
         TimingSource::WallClock => "wall clock",
     };
-    let method = solver.method();
-    let accumulates = matches!(method, GpuMethod::Scatter(_));
-    let medians = PhaseMedians::of(&phases, accumulates, scene.params.collides());
+    let (backend, method, threads, accumulates, bytes_per_step, bandwidth) =
+        match (simulation.choice(), simulation.memory()) {
+            (SolverChoice::Gpu(method), MemoryReport::Gpu(memory)) => (
+                "gpu",
+                method.name(),
+                0,
+                matches!(method, GpuMethod::Scatter(_)),
+                memory.table_1() as usize,
+                None,
+            ),
+            (SolverChoice::Cpu(options), _) => {
+                let solver = simulation
+                    .cpu_solver()
+                    .context("a cpu choice runs the cpu solver")?;
+                let bytes = solver.bytes_per_step();
+                (
+                    "cpu",
+                    options.method.name().to_owned(),
+                    solver.threads(),
+                    options.method == Method::Scatter,
+                    bytes,
+                    Some(copy_bandwidth(bytes, copy_pool)),
+                )
+            }
+            (choice, _) => anyhow::bail!("hooke bench does not time {}", choice.name()),
+        };
+    let medians = PhaseMedians::of(&phases, accumulates, scene.model.collision.any());
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
         springs: scene.model.spring_count(),
-        backend: "gpu",
-        method: method.name(),
-        threads: 0,
+        backend,
+        method,
+        threads,
         phase_timing: timing,
         force_calculation_ms: medians.force_calculation,
         force_accumulation_ms: medians.force_accumulation,
@@ -338,10 +316,10 @@ fn measure_gpu(
         phased_total_ms: medians.total,
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
-        bytes_per_step: memory.total() as usize,
-        copy_bandwidth_gb_per_s: None,
-        bandwidth_floor_ms: None,
-        dt_above_stability_bound: scene.params.dt > scene.max_stable_dt,
+        bytes_per_step,
+        copy_bandwidth_gb_per_s: bandwidth.map(|b| b / 1e9),
+        bandwidth_floor_ms: bandwidth.map(|b| 1e3 * bytes_per_step as f64 / b),
+        dt_above_stability_bound: scene.material.dt > scene.max_stable_dt,
     })
 }
 

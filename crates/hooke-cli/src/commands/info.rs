@@ -4,13 +4,13 @@ use std::path::PathBuf;
 
 use clap::Args;
 use comfy_table::Table;
+use hooke::{MemoryReport, Simulation, SolverChoice};
 use hooke_core::collide::{Collider, Shape};
 use hooke_core::stability::stability_limit;
 use hooke_cpu::layout::VertexOrder;
-use hooke_cpu::{CpuOptions, CpuSolver, Method};
-use hooke_gpu::{GpuContext, GpuMethod, GpuSolver, list_adapters};
+use hooke_cpu::{CpuOptions, Method};
+use hooke_gpu::{GpuContext, GpuMethod, list_adapters};
 use serde::Serialize;
-use std::sync::Arc;
 
 use crate::format::{OutputFormat, bytes, table};
 use crate::scene_loading::load_scene;
@@ -47,6 +47,8 @@ struct GpuMethodMemory {
     positions_bytes: u64,
     topology_bytes: u64,
     per_step_bytes: u64,
+    /// Control (point forces, drags, wind) and collider buffers, allocated whether used or not.
+    control_bytes: u64,
     total_bytes: u64,
 }
 
@@ -124,7 +126,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let (n_v, n_e) = (model.vertex_count(), model.spring_count());
     let histogram = model.valence_histogram();
     let max_valence = histogram.len().saturating_sub(1);
-    let limit = stability_limit(model, scene.params.damping);
+    let limit = stability_limit(model, scene.material.damping);
     let mut memory = Vec::new();
     for method in Method::ALL {
         let options = CpuOptions {
@@ -133,7 +135,10 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             order: VertexOrder::Mesh,
             ..Default::default()
         };
-        let used = CpuSolver::new(model, &scene.params, options)?.memory();
+        let simulation = Simulation::new(model, &scene.material, SolverChoice::Cpu(options), None)?;
+        let MemoryReport::Cpu(used) = simulation.memory() else {
+            anyhow::bail!("the cpu solver reports cpu memory");
+        };
         // Table 1: PCA stores N references+constants per vertex (RGB) and position+mass (RGBA);
         // ECA stores a force per edge (RGB) and edges plus positions (RGBA).
         let (rgb, rgba) = match method {
@@ -164,12 +169,12 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         max_valence,
         max_stable_dt: limit.max_dt,
         limiting_vertex: limit.limiting_vertex,
-        dt: scene.params.dt,
+        dt: scene.material.dt,
         memory,
         gpu_adapter,
         gpu_memory,
-        colliders: scene.params.colliders.iter().map(describe_collider).collect(),
-        self_collision: scene.params.self_collision.map(|c| {
+        colliders: scene.model.collision.colliders.iter().map(describe_collider).collect(),
+        self_collision: scene.model.collision.self_collision.map(|c| {
             format!(
                 "distance {} m, cells {} m, K = {} grids (shifted k/K of a cell along (1,1,1)), window {}",
                 c.distance, c.cell_size, c.grids, c.window
@@ -260,6 +265,7 @@ fn print_info(info: &Info) {
                 "positions",
                 "topology",
                 "per-step",
+                "control, colliders",
                 "total",
             ]);
             for m in &info.gpu_memory {
@@ -268,6 +274,7 @@ fn print_info(info: &Info) {
                     bytes(m.positions_bytes as usize),
                     bytes(m.topology_bytes as usize),
                     bytes(m.per_step_bytes as usize),
+                    bytes(m.control_bytes as usize),
                     bytes(m.total_bytes as usize),
                 ]);
             }
@@ -286,14 +293,19 @@ fn gpu_memory(scene: &hooke_core::scene::Scene) -> (Option<String>, Vec<GpuMetho
     let rows = GpuMethod::all()
         .into_iter()
         .filter_map(|method| {
-            let solver =
-                GpuSolver::new(Arc::clone(&context), &scene.model, &scene.params, method).ok()?;
-            let m = solver.memory();
+            let choice = SolverChoice::Gpu(method);
+            let simulation =
+                Simulation::new(&scene.model, &scene.material, choice, Some(context.clone()))
+                    .ok()?;
+            let MemoryReport::Gpu(m) = simulation.memory() else {
+                return None;
+            };
             Some(GpuMethodMemory {
                 method: method.name(),
                 positions_bytes: m.positions,
                 topology_bytes: m.topology,
                 per_step_bytes: m.per_step,
+                control_bytes: m.control,
                 total_bytes: m.total(),
             })
         })

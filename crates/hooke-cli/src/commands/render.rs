@@ -6,8 +6,9 @@ use std::process::{Command, Stdio};
 
 use anyhow::{Context, bail};
 use clap::Args;
-use hooke_gpu::render::{Image, OffscreenRun};
-use hooke_gpu::{GpuMethod, GpuSolver};
+use hooke::{OffscreenRun, Simulation, SolverChoice};
+use hooke_gpu::GpuMethod;
+use hooke_gpu::render::Image;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::scene_loading::load_scene;
@@ -81,8 +82,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         MethodArg::Scatter => GpuMethod::Scatter(args.accumulation.into()),
     };
     let context = open_gpu()?;
-    let mut run = OffscreenRun::new(context, &scene.model, &scene.params, method, args.size)
-        .context("setting up the GPU solver and renderer")?;
+    let simulation = Simulation::from_scene(&scene, SolverChoice::Gpu(method), Some(context))
+        .context("setting up the GPU solver")?;
+    let mut run = OffscreenRun::new(simulation, args.size).context("setting up the renderer")?;
     run.options.color_by_strain = args.strain;
     run.options.wireframe = args.wireframe;
     let mut output = open_output(&args.out, args.size, args.fps)?;
@@ -91,7 +93,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         scene.name,
         args.size[0],
         args.size[1],
-        hooke_core::Solver::describe(&run.solver as &GpuSolver)
+        run.simulation.describe()
     );
     let progress = ProgressBar::new(u64::from(frames));
     progress.set_style(

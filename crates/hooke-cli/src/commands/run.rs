@@ -5,11 +5,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Args;
+use hooke::Simulation;
+use hooke_core::State;
 use hooke_core::collide::Shape;
 use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
 use hooke_core::mesh::{write_ply_frame, write_ply_state};
 use hooke_core::scene::Scene;
-use hooke_core::{Solver, State};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -84,13 +85,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&output)
         .with_context(|| format!("creating output directory {}", output.display()))?;
 
-    let mut solver = args.solver.build(&scene.model, &scene.params)?;
+    let mut solver = args.solver.build(&scene)?;
     eprintln!(
         "{}: {} vertices, {} springs, dt {:.3e} s (stable up to {:.3e} s), {} steps on {}",
         scene.name,
         scene.model.vertex_count(),
         scene.model.spring_count(),
-        scene.params.dt,
+        scene.material.dt,
         scene.max_stable_dt,
         steps,
         solver.describe()
@@ -107,7 +108,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         Ok(())
     };
-    write_frame(&solver.read_state(), 0, &mut frames_written)?;
+    write_frame(&solver.state()?, 0, &mut frames_written)?;
 
     let mut solver_time = Duration::ZERO;
     let mut step = 0u64;
@@ -121,7 +122,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         result.map_err(|error| stopped(error, &output, frames_written))?;
         step += batch;
         progress.set_position(step);
-        let state = solver.read_state();
+        let state = solver
+            .state()
+            .map_err(|error| stopped(error, &output, frames_written))?;
         check_health(&scene.model, &state.positions, solver.steps_taken())
             .map_err(|error| stopped(error, &output, frames_written))?;
         if step.is_multiple_of(frame_every) || step == steps {
@@ -130,7 +133,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     }
     progress.finish_and_clear();
 
-    let state = solver.read_state();
+    let state = solver.state()?;
     let final_path = output.join("final-state.ply");
     write_ply_state(
         &final_path,
@@ -141,18 +144,20 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     .with_context(|| format!("writing {}", final_path.display()))?;
     let summary = summarize(
         &scene,
-        solver.as_ref(),
+        &solver,
         &state,
         steps,
         solver_time,
         frames_written,
         &output,
-    );
-    print_summary(&summary, &energy(&scene.model, &state, &scene.params));
+    )?;
+    print_summary(&summary, &energy(&scene.model, &state, &scene.material));
     let json = serde_json::to_string_pretty(&summary)?;
     let summary_path = output.join("summary.json");
-    std::fs::write(&summary_path, json)
-        .with_context(|| format!("writing {}", summary_path.display()))?;
+    hooke_core::atomic_file::write_atomically(&summary_path, |file| {
+        std::io::Write::write_all(file, json.as_bytes())
+    })
+    .with_context(|| format!("writing {}", summary_path.display()))?;
     Ok(())
 }
 
@@ -174,23 +179,24 @@ fn progress_bar(steps: u64) -> ProgressBar {
 
 fn summarize(
     scene: &Scene,
-    solver: &dyn Solver,
+    solver: &Simulation,
     state: &State,
     steps: u64,
     solver_time: Duration,
     frames_written: usize,
     output: &Path,
-) -> Summary {
-    let e = energy(&scene.model, state, &scene.params);
+) -> anyhow::Result<Summary> {
+    let colliders = solver.colliders()?;
+    let e = energy(&scene.model, state, &scene.material);
     let seconds = solver_time.as_secs_f64();
-    Summary {
+    Ok(Summary {
         scene: scene.name.clone(),
         solver: solver.describe(),
         vertices: scene.model.vertex_count(),
         springs: scene.model.spring_count(),
         steps,
-        dt: scene.params.dt,
-        simulated_seconds: steps as f64 * scene.params.dt,
+        dt: scene.material.dt,
+        simulated_seconds: steps as f64 * scene.material.dt,
         solver_seconds: seconds,
         steps_per_second: if seconds > 0.0 {
             steps as f64 / seconds
@@ -209,8 +215,7 @@ fn summarize(
         max_strain: max_strain(&scene.model, &state.positions).0,
         frames_written,
         output: output.to_path_buf(),
-        balls: solver
-            .colliders()
+        balls: colliders
             .iter()
             .enumerate()
             .filter(|(_, c)| c.dynamics.is_some())
@@ -223,7 +228,7 @@ fn summarize(
                 Shape::Plane { .. } | Shape::Capsule { .. } => None,
             })
             .collect(),
-    }
+    })
 }
 
 fn print_summary(s: &Summary, e: &Energy) {

@@ -18,10 +18,11 @@ use std::time::Instant;
 use clap::Args;
 use comfy_table::Table;
 use glam::Vec3;
+use hooke::{Simulation, SolverChoice};
 use hooke_core::scene::Scene;
 use hooke_core::selfcollide::{self, SelfCollision};
-use hooke_core::{SimParams, Solver, State};
-use hooke_cpu::{CpuOptions, CpuSolver};
+use hooke_core::{Material, State};
+use hooke_cpu::CpuOptions;
 use serde::Serialize;
 
 use crate::format::{OutputFormat, table};
@@ -89,7 +90,8 @@ struct Report {
 pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
     let scene = load_scene(&args.scene, args.allow_unstable)?;
     let baseline = scene
-        .params
+        .model
+        .collision
         .self_collision
         .unwrap_or_else(|| SelfCollision::for_model(&scene.model));
     let steps = args.steps.unwrap_or(scene.steps);
@@ -108,7 +110,7 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
         );
     }
 
-    let samples = sample_positions(&scene, &scene.params, baseline, steps, args.samples)?;
+    let samples = sample_positions(&scene, &scene.material, baseline, steps, args.samples)?;
     let mut settings = Vec::new();
     for &grids in &args.grids {
         for &cells in &args.cell_sizes {
@@ -123,7 +125,7 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
 
     let mut time_steps = Vec::new();
     for &scale in &args.dt_scales {
-        let dt = scene.params.dt * scale;
+        let dt = scene.material.dt * scale;
         if dt > scene.max_stable_dt && !args.allow_unstable {
             eprintln!(
                 "dt scale {scale}: {dt:.3e} s exceeds the stability bound {:.3e} s; skipped (--allow-unstable runs it)",
@@ -132,11 +134,11 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
             continue;
         }
         let scaled_steps = (steps as f64 / scale).round() as u64;
-        let params = SimParams {
+        let material = Material {
             dt,
-            ..scene.params.clone()
+            ..scene.material
         };
-        let samples = sample_positions(&scene, &params, baseline, scaled_steps, args.samples)?;
+        let samples = sample_positions(&scene, &material, baseline, scaled_steps, args.samples)?;
         let exact: usize = samples.iter().map(|s| s.exact.len()).sum();
         let missed: f64 = samples
             .iter()
@@ -147,11 +149,7 @@ pub fn run(args: &StudyArgs) -> anyhow::Result<()> {
             })
             .sum();
         let count_at_end = |config: Option<SelfCollision>| -> anyhow::Result<usize> {
-            let params = SimParams {
-                self_collision: config,
-                ..params.clone()
-            };
-            let state = run_cpu(&scene, &params, scaled_steps)?;
+            let state = run_cpu(&scene, &material, config, scaled_steps)?;
             Ok(interpenetrating(&scene, &state, baseline.distance))
         };
         time_steps.push(StepRow {
@@ -187,17 +185,35 @@ struct Sample {
     exact: Vec<(u32, u32)>,
 }
 
-fn run_cpu(scene: &Scene, params: &SimParams, steps: u64) -> anyhow::Result<State> {
-    let mut solver = CpuSolver::new(&scene.model, params, CpuOptions::default())?;
-    step_in_batches(&mut solver, steps)?;
-    Ok(solver.read_state())
+/// The scene on the CPU solver under `material`, with self-collision `config`.
+fn cpu_simulation(
+    scene: &Scene,
+    material: &Material,
+    config: Option<SelfCollision>,
+) -> anyhow::Result<Simulation> {
+    let choice = SolverChoice::Cpu(CpuOptions::default());
+    let mut simulation = Simulation::from_scene(scene, choice, None)?;
+    simulation.set_material(*material)?;
+    simulation.set_self_collision(config)?;
+    Ok(simulation)
 }
 
-fn step_in_batches(solver: &mut CpuSolver, steps: u64) -> anyhow::Result<()> {
+fn run_cpu(
+    scene: &Scene,
+    material: &Material,
+    config: Option<SelfCollision>,
+    steps: u64,
+) -> anyhow::Result<State> {
+    let mut simulation = cpu_simulation(scene, material, config)?;
+    step_in_batches(&mut simulation, steps)?;
+    Ok(simulation.state()?)
+}
+
+fn step_in_batches(simulation: &mut Simulation, steps: u64) -> anyhow::Result<()> {
     let mut left = steps;
     while left > 0 {
         let batch = left.min(u64::from(u32::MAX)) as u32;
-        solver.step(batch)?;
+        simulation.step(batch)?;
         left -= u64::from(batch);
     }
     Ok(())
@@ -207,31 +223,23 @@ fn step_in_batches(solver: &mut CpuSolver, steps: u64) -> anyhow::Result<()> {
 /// self-collision from the current state.
 fn sample_positions(
     scene: &Scene,
-    params: &SimParams,
+    material: &Material,
     config: SelfCollision,
     steps: u64,
     count: u32,
 ) -> anyhow::Result<Vec<Sample>> {
-    let with = SimParams {
-        self_collision: Some(config),
-        ..params.clone()
-    };
-    let without = SimParams {
-        self_collision: None,
-        ..params.clone()
-    };
-    let mut solver = CpuSolver::new(&scene.model, &with, CpuOptions::default())?;
-    let mut probe = CpuSolver::new(&scene.model, &without, CpuOptions::default())?;
+    let mut solver = cpu_simulation(scene, material, Some(config))?;
+    let mut probe = cpu_simulation(scene, material, None)?;
     let mut samples = Vec::new();
     let mut done = 0;
     for k in 1..=u64::from(count) {
         let target = steps * k / u64::from(count);
         step_in_batches(&mut solver, target - done)?;
         done = target;
-        probe.write_state(&solver.read_state());
+        probe.set_state(&solver.state()?);
         probe.step(1)?;
         let positions: Vec<Vec3> = probe
-            .read_state()
+            .state()?
             .positions
             .iter()
             .map(|p| p.as_vec3())
@@ -284,7 +292,7 @@ fn interpenetrating(scene: &Scene, state: &State, distance: f64) -> usize {
 fn print_report(report: &Report, scene: &Scene, steps: u64, samples: u32) {
     println!(
         "{}: {} vertices, distance {:.4} m, {steps} steps of {:.3e} s, {samples} samples; exact search: hash grid, 27 cells",
-        report.scene, report.vertices, report.distance_m, scene.params.dt
+        report.scene, report.vertices, report.distance_m, scene.material.dt
     );
     let mut t = Table::new();
     t.set_header(vec![

@@ -6,6 +6,7 @@
 //! through non-blocking read-backs a frame or two later.
 
 mod panel;
+mod script;
 mod simulation;
 
 use std::path::PathBuf;
@@ -26,7 +27,7 @@ use winit::window::{Window, WindowId};
 
 use crate::scene_loading::load_scene;
 use panel::PushDirection;
-use simulation::Simulation;
+use simulation::LiveSimulation;
 
 #[derive(Debug, Args)]
 pub struct ViewArgs {
@@ -44,6 +45,10 @@ pub struct ViewArgs {
     /// Run even if dt exceeds the stability bound.
     #[arg(long)]
     pub allow_unstable: bool,
+    /// Feed scripted input through the viewer's handlers (for tests and demos; use with
+    /// --frames): `drag` presses on the cloth, drags it, changes stiffness, damping and dt.
+    #[arg(long, value_enum)]
+    pub script: Option<script::Script>,
     /// The solver to start with (the panel can switch); the reference backend is not offered.
     #[command(flatten)]
     pub solver: crate::solvers::SolverArgs,
@@ -137,7 +142,7 @@ struct Viewer {
     egui: egui::Context,
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
-    simulation: Simulation,
+    simulation: LiveSimulation,
     gesture: Gesture,
     pick_requested: bool,
     cursor: Vec2,
@@ -148,6 +153,10 @@ struct Viewer {
     frame_seconds: f64,
     /// The context's blocking read-back count when the frame loop started.
     blocking_reads_before: u64,
+    /// The context's pipeline count when the frame loop started.
+    pipelines_before: u64,
+    /// The drag script's progress, when `--script drag` runs.
+    drag_script: Option<script::DragScript>,
 }
 
 impl Viewer {
@@ -199,13 +208,13 @@ impl Viewer {
             color_space: wgpu::SurfaceColorSpace::Auto,
         };
         surface.configure(&context.device, &config);
-        let simulation = Simulation::new(
+        let simulation = LiveSimulation::new(
             Arc::clone(&context),
             scene,
             simulation::Choice::from_args(&args.solver)?,
         )?;
         let mut renderer = SceneRenderer::new(&context, simulation.model(), format)?;
-        renderer.set_colliders(&context, &simulation.params().colliders);
+        renderer.set_colliders(&context, &simulation.model().collision.colliders);
         let picker = Picker::new(&context, simulation.model().vertex_count() as u32)?;
         let egui = egui::Context::default();
         let egui_state = egui_winit::State::new(
@@ -243,9 +252,12 @@ impl Viewer {
             last_frame: Instant::now(),
             frame_seconds: 1.0 / 60.0,
             blocking_reads_before: 0,
+            pipelines_before: 0,
+            drag_script: args.script.map(|script::Script::Drag| Default::default()),
         };
-        viewer.simulation.apply_params();
+        viewer.simulation.apply();
         viewer.blocking_reads_before = viewer.context.blocking_reads();
+        viewer.pipelines_before = viewer.context.pipelines_created();
         Ok(viewer)
     }
 
@@ -326,7 +338,7 @@ impl Viewer {
             (_, ElementState::Released) => {
                 if matches!(self.gesture, Gesture::Grabbing { .. }) {
                     self.simulation.grab = None;
-                    self.simulation.apply_params();
+                    self.simulation.apply();
                 }
                 self.gesture = Gesture::Idle;
             }
@@ -359,11 +371,59 @@ impl Viewer {
         if denominator.abs() > 1e-6 {
             let t = (anchor - origin).dot(normal) / denominator;
             self.simulation.grab = Some((vertex, origin + direction * t));
-            self.simulation.apply_params();
+            self.simulation.apply();
         }
     }
 
+    /// The drag script's next action, through the same handlers as real input.
+    fn run_script(&mut self) {
+        let Some(mut script) = self.drag_script.take() else {
+            return;
+        };
+        let holding = match self.gesture {
+            Gesture::Grabbing { vertex, .. } => Some(vertex),
+            _ => None,
+        };
+        let model = self.simulation.model();
+        let centroid = model.initial_positions.iter().sum::<glam::DVec3>()
+            / model.vertex_count().max(1) as f64;
+        let middle = model
+            .initial_positions
+            .iter()
+            .min_by(|a, b| a.distance(centroid).total_cmp(&b.distance(centroid)))
+            .copied()
+            .unwrap_or(centroid);
+        let size = self.size();
+        let aspect = size[0] as f32 / size[1].max(1) as f32;
+        let target = script::project(self.camera.view_projection(aspect), middle.as_vec3(), size);
+        match script.next(self.frames, holding, target) {
+            script::Action::Press(at) => {
+                self.cursor = at;
+                self.mouse_button(ElementState::Pressed, MouseButton::Left);
+            }
+            script::Action::Move(delta) => {
+                self.cursor += delta;
+                self.pointer_moved(delta);
+            }
+            script::Action::Tune => {
+                // Three panel edits, each applied on its own as the sliders do.
+                self.simulation.stiffness_scale *= 2.0;
+                self.simulation.apply();
+                self.simulation.damping += 0.001;
+                self.simulation.apply();
+                self.simulation.dt_fraction *= 0.8;
+                self.simulation.apply();
+            }
+            script::Action::Release => {
+                self.mouse_button(ElementState::Released, MouseButton::Left);
+            }
+            script::Action::Nothing => {}
+        }
+        self.drag_script = Some(script);
+    }
+
     fn frame(&mut self) -> anyhow::Result<bool> {
+        self.run_script();
         let now = Instant::now();
         self.frame_seconds =
             0.9 * self.frame_seconds + 0.1 * now.duration_since(self.last_frame).as_secs_f64();
@@ -374,7 +434,7 @@ impl Viewer {
             self.gesture = match answer {
                 Some(hit) => {
                     self.simulation.grab = Some((hit.vertex, hit.position));
-                    self.simulation.apply_params();
+                    self.simulation.apply();
                     Gesture::Grabbing {
                         vertex: hit.vertex,
                         anchor: hit.position,
@@ -405,13 +465,17 @@ impl Viewer {
                     label: Some("viewer frame"),
                 });
         self.simulation.encode_frame(&mut encoder);
+        let positions = self
+            .simulation
+            .positions()
+            .context("the viewer's solver draws from a GPU buffer")?;
         let size = self.size();
         let mut picking = false;
         if self.pick_requested {
             picking = self.picker.encode(
                 &self.context,
                 &mut encoder,
-                self.simulation.positions(),
+                positions,
                 &self.camera,
                 PickAt {
                     cursor: self.cursor_ndc(),
@@ -421,8 +485,7 @@ impl Viewer {
             );
             self.pick_requested = !picking;
         }
-        let params = self.simulation.params();
-        self.options.wind = params.wind.map(|w| w.velocity.as_vec3());
+        self.options.wind = self.simulation.wind().map(|w| w.velocity.as_vec3());
         self.renderer
             .set_colliders(&self.context, &self.simulation.colliders_to_draw());
         self.simulation
@@ -430,7 +493,7 @@ impl Viewer {
         self.renderer.encode(
             &self.context,
             &mut encoder,
-            self.simulation.positions(),
+            positions,
             &view,
             size,
             &self.camera,
@@ -451,11 +514,15 @@ impl Viewer {
         self.simulation.after_submit();
         if last {
             eprintln!(
-                "viewer: {} frames, {} steps, {} blocking GPU read-backs in the frame loop",
+                "viewer: {} frames, {} steps; in the frame loop: {} blocking GPU read-backs, {} pipelines created",
                 self.frames + 1,
                 self.simulation.steps_taken(),
-                self.context.blocking_reads() - self.blocking_reads_before
+                self.context.blocking_reads() - self.blocking_reads_before,
+                self.context.pipelines_created() - self.pipelines_before
             );
+            if let Some(script) = &self.drag_script {
+                eprintln!("{}", script.report());
+            }
         }
         if let (Some((buffer, padded_row)), Some(path)) = (screenshot, &self.screenshot) {
             self.save_screenshot(&buffer, padded_row, path)?;

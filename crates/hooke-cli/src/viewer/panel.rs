@@ -3,11 +3,11 @@
 use hooke_core::selfcollide;
 use hooke_gpu::render::{Camera, RenderOptions, SceneBounds};
 
-use super::simulation::Simulation;
+use super::simulation::LiveSimulation;
 
 pub fn show(
     root: &mut egui::Ui,
-    simulation: &mut Simulation,
+    simulation: &mut LiveSimulation,
     options: &mut RenderOptions,
     camera: &mut Camera,
     bounds: &SceneBounds,
@@ -58,7 +58,7 @@ pub fn show(
                 )
                 .changed()
             {
-                simulation.stiffness_changed = true;
+                changed = true;
             }
             changed |= ui
                 .add(
@@ -129,7 +129,7 @@ pub fn show(
                     .changed();
             });
             if changed {
-                simulation.apply_params();
+                simulation.apply();
             }
             ball_controls(ui, simulation, camera);
             ui.separator();
@@ -165,7 +165,7 @@ pub fn show(
 }
 
 /// Hold-to-push buttons for the dynamic balls (the arrow keys and PageUp do the same).
-fn ball_controls(ui: &mut egui::Ui, simulation: &mut Simulation, camera: &Camera) {
+fn ball_controls(ui: &mut egui::Ui, simulation: &mut LiveSimulation, camera: &Camera) {
     let balls = simulation.balls();
     if balls.is_empty() {
         return;

@@ -1,18 +1,23 @@
-//! What the viewer simulates and how the panel changes it: the solver choice, live parameters,
-//! the grabbed vertex, and status checks that never make a frame wait.
+//! What the viewer simulates and how the panel changes it: the solver choice, the controls, the
+//! grabbed vertex, and status checks that never make a frame wait.
+//!
+//! The panel's values become a [`Control`] (drag, wind, pushes), a [`Material`] (stiffness,
+//! damping, dt, gravity) and a self-collision set-up; [`LiveSimulation::apply`] sends only what
+//! changed to the engine, which writes it into buffers it has: a drag or a slider creates no
+//! pipeline and reads nothing back.
 
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
-use hooke_core::collide::{self, Collider};
+use hooke::{Simulation, SolverChoice};
+use hooke_core::collide::Collider;
 use hooke_core::scene::Scene;
 use hooke_core::selfcollide::SelfCollision;
-use hooke_core::stability::stability_limit;
-use hooke_core::{Drag, Model, PhaseTimes, SimParams, Solver, State, Wind};
-use hooke_cpu::{CpuOptions, CpuSolver, Method};
+use hooke_core::{BallPush, Control, Drag, Material, Model, PhaseTimes, TimingSource, Wind};
+use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::render::AsyncReadback;
 use hooke_gpu::wgpu;
-use hooke_gpu::{Accumulation, GpuContext, GpuMethod, GpuSolver, TimingSource, positions_to_vec4};
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod};
 
 /// Which solver runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,14 +29,13 @@ pub enum Choice {
 impl Choice {
     /// The solver the command line asks for.
     pub fn from_args(args: &crate::solvers::SolverArgs) -> anyhow::Result<Self> {
-        use crate::solvers::{Backend, MethodArg};
-        Ok(match (args.backend.unwrap_or(Backend::Gpu), args.method) {
-            (Backend::Reference, _) => {
+        use crate::solvers::Backend;
+        Ok(match args.choice(Backend::Gpu) {
+            SolverChoice::Reference => {
                 anyhow::bail!("the viewer runs the cpu or gpu backend, not the reference")
             }
-            (Backend::Cpu, method) => Choice::Cpu(method.unwrap_or(MethodArg::Gather).into()),
-            (Backend::Gpu, Some(MethodArg::Gather)) => Choice::Gpu(GpuMethod::Gather),
-            (Backend::Gpu, _) => Choice::Gpu(GpuMethod::Scatter(args.accumulation.into())),
+            SolverChoice::Cpu(options) => Choice::Cpu(options.method),
+            SolverChoice::Gpu(method) => Choice::Gpu(method),
         })
     }
 
@@ -41,27 +45,28 @@ impl Choice {
             Self::Cpu(m) => format!("cpu {} (uploads positions each frame)", m.name()),
         }
     }
-}
 
-enum Active {
-    Gpu(Box<GpuSolver>),
-    /// The CPU solver's positions are copied into this vec4 buffer every frame for drawing.
-    Cpu(Box<CpuSolver>, wgpu::Buffer),
+    fn solver(self) -> SolverChoice {
+        match self {
+            Self::Gpu(method) => SolverChoice::Gpu(method),
+            Self::Cpu(method) => SolverChoice::Cpu(CpuOptions {
+                method,
+                ..Default::default()
+            }),
+        }
+    }
 }
 
 /// Steps between non-blocking status checks of the GPU solver.
 const STATUS_EVERY: u64 = 30;
 
-pub struct Simulation {
+pub struct LiveSimulation {
     context: Arc<GpuContext>,
     scene: Scene,
-    model: Model,
-    active: Active,
+    engine: Simulation,
     pub choice: Choice,
     pub choices: Vec<Choice>,
     pub stiffness_scale: f64,
-    /// Set by the panel; the model is rebuilt before the next frame's steps.
-    pub stiffness_changed: bool,
     pub damping: f64,
     /// dt as a fraction of the stability bound.
     pub dt_fraction: f64,
@@ -88,7 +93,7 @@ pub struct Simulation {
     frames_since_status: u64,
 }
 
-impl Simulation {
+impl LiveSimulation {
     pub fn new(context: Arc<GpuContext>, scene: Scene, choice: Choice) -> anyhow::Result<Self> {
         let gpu_methods = GpuMethod::all().into_iter().filter(|m| match m {
             GpuMethod::Scatter(Accumulation::AtomicF32) => {
@@ -103,50 +108,44 @@ impl Simulation {
             .map(Choice::Gpu)
             .chain(Method::ALL.map(Choice::Cpu))
             .collect();
-        let wind = scene.params.wind;
+        let wind = scene.control.wind;
         let (heading, speed) = wind.map_or((0.0, 3.0), |w| {
             (
                 w.velocity.z.atan2(w.velocity.x).to_degrees(),
                 w.velocity.length(),
             )
         });
-        let active = build(&context, choice, &scene.model, &scene.params)?;
+        let engine = Simulation::from_scene(&scene, choice.solver(), Some(Arc::clone(&context)))?;
         let status = AsyncReadback::new(&context, "status read-back", 16);
+        let colliders = &scene.model.collision.colliders;
         Ok(Self {
             max_stable_dt: scene.max_stable_dt,
-            dt_fraction: (scene.params.dt / scene.max_stable_dt).min(1.0),
-            damping: scene.params.damping,
-            gravity_y: scene.params.gravity.y,
+            dt_fraction: (scene.material.dt / scene.max_stable_dt).min(1.0),
+            damping: scene.material.damping,
+            gravity_y: scene.material.gravity.y,
             wind_enabled: wind.is_some(),
             wind_heading_degrees: heading,
             wind_speed: speed,
             wind_coefficient: wind.map_or(0.5, |w| w.coefficient),
-            self_collision_enabled: scene.params.self_collision.is_some(),
-            selected_ball: scene
-                .params
-                .colliders
-                .iter()
-                .position(|c| c.dynamics.is_some()),
+            self_collision_enabled: scene.model.collision.self_collision.is_some(),
+            selected_ball: colliders.iter().position(|c| c.dynamics.is_some()),
             // Three times the heaviest ball's weight: enough to roll it into the cloth.
             push_newtons: 3.0
                 * 9.81
-                * scene
-                    .params
-                    .colliders
+                * colliders
                     .iter()
                     .filter_map(|c| c.dynamics.map(|d| d.mass))
                     .fold(0.0, f64::max),
             push_direction: DVec3::ZERO,
             self_collision: scene
-                .params
+                .model
+                .collision
                 .self_collision
                 .unwrap_or_else(|| SelfCollision::for_model(&scene.model)),
             stiffness_scale: 1.0,
-            stiffness_changed: false,
             steps_per_frame: 10,
-            model: scene.model.clone(),
             scene,
-            active,
+            engine,
             choice,
             choices,
             context,
@@ -161,7 +160,7 @@ impl Simulation {
     }
 
     pub fn model(&self) -> &Model {
-        &self.model
+        self.engine.model()
     }
 
     pub fn dt(&self) -> f64 {
@@ -169,63 +168,40 @@ impl Simulation {
     }
 
     pub fn steps_taken(&self) -> u64 {
-        self.solver().steps_taken()
+        self.engine.steps_taken()
     }
 
-    /// The colliders to draw this frame: the CPU solver's own (no cost), or on the GPU the
-    /// scripted places (dynamic balls are then copied in by [`Simulation::copy_spheres`]).
+    /// The colliders to draw this frame, without waiting for the GPU.
     pub fn colliders_to_draw(&self) -> Vec<Collider> {
-        match &self.active {
-            Active::Gpu(_) => {
-                let t = self.steps_taken() as f64 * self.dt();
-                collide::placed(&self.params().colliders, t)
-            }
-            Active::Cpu(s, _) => s.colliders(),
-        }
+        self.engine.colliders_to_draw()
     }
 
     /// Records copies of the GPU solver's ball places into the renderer's sphere buffer.
     pub fn copy_spheres(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::Buffer) {
-        if let Active::Gpu(solver) = &self.active {
-            solver.copy_spheres(encoder, target);
-        }
-    }
-
-    fn solver(&self) -> &dyn Solver {
-        match &self.active {
-            Active::Gpu(s) => s.as_ref(),
-            Active::Cpu(s, _) => s.as_ref(),
-        }
-    }
-
-    fn solver_mut(&mut self) -> &mut dyn Solver {
-        match &mut self.active {
-            Active::Gpu(s) => s.as_mut(),
-            Active::Cpu(s, _) => s.as_mut(),
-        }
+        self.engine.copy_spheres(encoder, target);
     }
 
     /// The buffer the renderer draws: the GPU solver's own positions, or the CPU upload.
-    pub fn positions(&self) -> &wgpu::Buffer {
-        match &self.active {
-            Active::Gpu(s) => s.current_positions(),
-            Active::Cpu(_, buffer) => buffer,
-        }
+    pub fn positions(&self) -> Option<&wgpu::Buffer> {
+        self.engine.positions_buffer()
     }
 
-    /// The parameters the controls describe.
-    pub fn params(&self) -> SimParams {
+    /// The wind the controls describe.
+    pub fn wind(&self) -> Option<Wind> {
         let heading = self.wind_heading_degrees.to_radians();
-        let mass = |v: u32| self.model.masses[v as usize];
-        SimParams {
-            dt: self.dt(),
-            damping: self.damping,
-            gravity: DVec3::new(0.0, self.gravity_y, 0.0),
-            wind: self.wind_enabled.then(|| Wind {
-                velocity: DVec3::new(heading.cos(), 0.0, heading.sin()) * self.wind_speed,
-                coefficient: self.wind_coefficient,
-            }),
-            point_forces: self.scene.params.point_forces.clone(),
+        self.wind_enabled.then(|| Wind {
+            velocity: DVec3::new(heading.cos(), 0.0, heading.sin()) * self.wind_speed,
+            coefficient: self.wind_coefficient,
+        })
+    }
+
+    /// The per-step inputs the controls describe.
+    pub fn control(&self) -> Control {
+        let mass = |v: u32| self.model().masses[v as usize];
+        let dt = self.dt();
+        Control {
+            wind: self.wind(),
+            point_forces: self.scene.control.point_forces.clone(),
             drags: self
                 .grab
                 .map(|(vertex, target)| Drag {
@@ -233,71 +209,65 @@ impl Simulation {
                     target: target.as_dvec3(),
                     // Stiff enough to lead the cloth, soft enough to stay stable: it adds a fifth
                     // of the stability budget to the grabbed vertex.
-                    stiffness: 0.2 * mass(vertex) / (self.dt() * self.dt()),
+                    stiffness: 0.2 * mass(vertex) / (dt * dt),
                 })
                 .into_iter()
-                .chain(self.scene.params.drags.iter().cloned())
+                .chain(self.scene.control.drags.iter().cloned())
                 .collect(),
-            colliders: self.pushed_colliders(),
-            collision_thickness: self.scene.params.collision_thickness,
-            self_collision: self.self_collision_enabled.then_some(self.self_collision),
+            ball_pushes: self
+                .selected_ball
+                .filter(|_| self.push_direction != DVec3::ZERO)
+                .map(|collider| BallPush {
+                    collider,
+                    force: self.push_direction * self.push_newtons,
+                })
+                .into_iter()
+                .collect(),
         }
     }
 
-    /// The scene's colliders, the selected ball with the user's push added to its force.
-    fn pushed_colliders(&self) -> Vec<Collider> {
-        let mut colliders = self.scene.params.colliders.clone();
-        if let Some(k) = self.selected_ball
-            && let Some(dynamics) = colliders.get_mut(k).and_then(|c| c.dynamics.as_mut())
-        {
-            dynamics.force += self.push_direction * self.push_newtons;
+    /// The material the controls describe; `max_stable_dt` follows its stiffness and damping.
+    fn material(&mut self) -> Material {
+        let material = Material {
+            damping: self.damping,
+            gravity: DVec3::new(0.0, self.gravity_y, 0.0),
+            stiffness_scale: self.stiffness_scale,
+            ..*self.engine.material()
+        };
+        self.max_stable_dt = self.engine.stability_limit_under(&material).max_dt;
+        Material {
+            dt: self.dt(),
+            ..material
         }
-        colliders
     }
 
-    /// Sends the controls' parameters to the solver.
-    pub fn apply_params(&mut self) {
-        let params = self.params();
-        self.solver_mut().set_params(&params);
-    }
-
-    /// Rebuilds the model (after a stiffness change) and the solver, keeping the state.
-    pub fn rebuild(&mut self) {
-        let state = self.solver().read_state();
-        self.model = self.scene.model.clone();
-        for k in &mut self.model.stiffnesses {
-            *k *= self.stiffness_scale;
+    /// Sends what the controls changed to the engine, in place: the material, the control,
+    /// the self-collision set-up (only that builds anything: the GPU's self-collision pass).
+    pub fn apply(&mut self) {
+        let material = self.material();
+        let control = self.control();
+        let self_collision = self.self_collision_enabled.then_some(self.self_collision);
+        let mut result = Ok(());
+        if material != *self.engine.material() {
+            result = result.and(self.engine.set_material(material));
         }
-        self.max_stable_dt = stability_limit(&self.model, self.damping).max_dt;
-        self.replace_solver(self.choice, Some(state));
+        if control != *self.engine.control() {
+            result = result.and(self.engine.set_control(control));
+        }
+        if self_collision != self.engine.self_collision() {
+            result = result.and(self.engine.set_self_collision(self_collision));
+        }
+        if let Err(error) = result {
+            self.message = Some(error.to_string());
+            self.paused = true;
+        }
     }
 
+    /// Moves the running simulation onto another solver (a user action: it reads the state
+    /// back once).
     pub fn switch(&mut self, choice: Choice) {
-        let state = self.solver().read_state();
-        self.replace_solver(choice, Some(state));
-    }
-
-    /// A new solver; with `state`, it continues the running simulation (cloth and balls),
-    /// without, it starts the scene again.
-    fn replace_solver(&mut self, choice: Choice, state: Option<State>) {
-        let mut params = self.params();
-        if state.is_some() {
-            // Dynamic balls carry on from where they are.
-            for (setting, now) in params.colliders.iter_mut().zip(self.solver().colliders()) {
-                if setting.dynamics.is_some() {
-                    (setting.shape, setting.velocity) = (now.shape, now.velocity);
-                }
-            }
-        }
-        match build(&self.context, choice, &self.model, &params) {
-            Ok(mut active) => {
-                if let Some(state) = state {
-                    match &mut active {
-                        Active::Gpu(s) => s.write_state(&state),
-                        Active::Cpu(s, _) => s.write_state(&state),
-                    }
-                }
-                self.active = active;
+        match self.engine.switch_solver(choice.solver()) {
+            Ok(()) => {
                 self.choice = choice;
                 self.message = None;
             }
@@ -305,14 +275,26 @@ impl Simulation {
         }
     }
 
+    /// Starts the scene again on the current solver, with the controls as they are.
     pub fn reset(&mut self) {
-        self.replace_solver(self.choice, None);
+        match Simulation::from_scene(
+            &self.scene,
+            self.choice.solver(),
+            Some(Arc::clone(&self.context)),
+        ) {
+            Ok(engine) => {
+                self.engine = engine;
+                self.message = None;
+                self.apply();
+            }
+            Err(error) => self.message = Some(format!("{}: {error:#}", self.choice.label())),
+        }
         self.paused = false;
     }
 
     /// Dynamic balls the panel and keys can push, as collider indices.
     pub fn balls(&self) -> Vec<usize> {
-        let colliders = &self.scene.params.colliders;
+        let colliders = &self.model().collision.colliders;
         (0..colliders.len())
             .filter(|&k| colliders[k].dynamics.is_some())
             .collect()
@@ -322,16 +304,13 @@ impl Simulation {
     pub fn push(&mut self, direction: DVec3) {
         if direction != self.push_direction {
             self.push_direction = direction;
-            self.apply_params();
+            self.apply();
         }
     }
 
     /// Records this frame's steps. GPU steps go into `encoder`; CPU steps run now and their
     /// positions are uploaded for drawing.
     pub fn encode_frame(&mut self, encoder: &mut wgpu::CommandEncoder) {
-        if std::mem::take(&mut self.stiffness_changed) {
-            self.rebuild();
-        }
         let steps = if self.paused && !self.step_once {
             0
         } else if self.step_once {
@@ -340,25 +319,16 @@ impl Simulation {
             self.steps_per_frame
         };
         self.step_once = false;
-        match &mut self.active {
-            Active::Gpu(solver) => {
-                solver.encode_steps(encoder, steps);
-                self.frames_since_status += u64::from(steps);
-                if self.frames_since_status >= STATUS_EVERY
-                    && self.status.encode_copy(encoder, solver.status_buffer())
-                {
-                    self.frames_since_status = 0;
-                }
-            }
-            Active::Cpu(solver, buffer) => {
-                if let Err(error) = solver.step(steps) {
-                    self.message = Some(error.to_string());
-                    self.paused = true;
-                }
-                let positions = positions_to_vec4(&solver.read_state().positions);
-                self.context
-                    .queue
-                    .write_buffer(buffer, 0, bytemuck::cast_slice(&positions));
+        if let Err(error) = self.engine.encode_frame(encoder, steps) {
+            self.message = Some(error.to_string());
+            self.paused = true;
+        }
+        if let Some(solver) = self.engine.gpu_solver_mut() {
+            self.frames_since_status += u64::from(steps);
+            if self.frames_since_status >= STATUS_EVERY
+                && self.status.encode_copy(encoder, solver.status_buffer())
+            {
+                self.frames_since_status = 0;
             }
         }
     }
@@ -367,7 +337,7 @@ impl Simulation {
     pub fn after_submit(&mut self) {
         self.status.request();
         if let Some(bytes) = self.status.try_take(&self.context)
-            && let Active::Gpu(solver) = &mut self.active
+            && let Some(solver) = self.engine.gpu_solver_mut()
             && let Err(error) = solver.judge_status(&bytes)
         {
             self.message = Some(format!("{error} (press Reset)"));
@@ -375,48 +345,12 @@ impl Simulation {
         }
     }
 
-    /// Times one step's phases (waits for the GPU once; a user action, not part of the loop).
-    /// Times one step phase by phase (force, accumulation, integration, collision).
+    /// Times one step phase by phase (force, accumulation, integration, collision); waits for
+    /// the GPU once: a user action, not part of the loop.
     pub fn measure_phases(&mut self) {
-        let measured = match &mut self.active {
-            Active::Gpu(solver) => solver.step_timed().map_err(|e| e.to_string()),
-            Active::Cpu(solver, _) => solver
-                .step_phased()
-                .map(|times| (times, TimingSource::WallClock))
-                .map_err(|e| e.to_string()),
-        };
-        match measured {
+        match self.engine.step_timed() {
             Ok(times) => self.phases = Some(times),
-            Err(error) => self.message = Some(error),
+            Err(error) => self.message = Some(error.to_string()),
         }
     }
-}
-
-fn build(
-    context: &Arc<GpuContext>,
-    choice: Choice,
-    model: &Model,
-    params: &SimParams,
-) -> anyhow::Result<Active> {
-    Ok(match choice {
-        Choice::Gpu(method) => Active::Gpu(Box::new(GpuSolver::new(
-            Arc::clone(context),
-            model,
-            params,
-            method,
-        )?)),
-        Choice::Cpu(method) => {
-            let options = CpuOptions {
-                method,
-                ..Default::default()
-            };
-            let buffer = context.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("cpu positions upload"),
-                size: 16 * model.vertex_count().max(1) as u64,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            Active::Cpu(Box::new(CpuSolver::new(model, params, options)?), buffer)
-        }
-    })
 }

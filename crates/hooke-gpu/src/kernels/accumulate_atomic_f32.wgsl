@@ -8,7 +8,7 @@
 // 4 floats per vertex (xyz + unused), zeroed before the pass; read as vec4 by `integrate`.
 @group(0) @binding(3) var<storage, read_write> accumulated: array<atomic<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let s = flat_index(id, groups);
     if s >= u.spring_count {

@@ -21,7 +21,7 @@ fn to_fixed(force: vec3<f32>) -> vec3<i32> {
     return vec3<i32>(round(select(vec3<f32>(0.0), clamped, clamped == clamped)));
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let s = flat_index(id, groups);
     if s >= u.spring_count {

@@ -5,13 +5,13 @@
 // `collide`. Collider entries as in collide.wgsl.
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
-@group(0) @binding(1) var<storage, read_write> colliders: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read_write> colliders: array<Collider>;
 @group(0) @binding(2) var<storage, read> reactions: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> status: Status;
 
-var<workgroup> partial: array<vec3<f32>, 64>;
+var<workgroup> partial: array<vec3<f32>, WORKGROUP_SIZE>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn advance(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
@@ -35,17 +35,17 @@ fn advance(
     if lane != 0u || c >= u.collider_count {
         return;
     }
-    let inverse_mass = colliders[4u * c + 2u].w;
+    let inverse_mass = colliders[c].motion.w;
     if inverse_mass <= 0.0 {
         return;
     }
     let dt = 1.0 / u.inverse_dt;
     let gravity = u.gravity_step.xyz * u.inverse_dt * u.inverse_dt;
-    let force = colliders[4u * c + 3u].xyz - partial[0];
-    let velocity = colliders[4u * c + 2u].xyz + (force * inverse_mass + gravity) * dt;
-    let position = colliders[4u * c].xyz + velocity * dt;
-    colliders[4u * c + 2u] = vec4<f32>(velocity, inverse_mass);
-    colliders[4u * c] = vec4<f32>(position, colliders[4u * c].w);
+    let force = colliders[c].script.xyz - partial[0];
+    let velocity = colliders[c].motion.xyz + (force * inverse_mass + gravity) * dt;
+    let position = colliders[c].place.xyz + velocity * dt;
+    colliders[c].motion = vec4<f32>(velocity, inverse_mass);
+    colliders[c].place = vec4<f32>(position, colliders[c].place.w);
     if !is_finite3(position) || !is_finite3(velocity) {
         // Reported like a vertex, marked as a ball (a bad vertex of the same step wins).
         let step = status.step_counter + 1u;
@@ -61,33 +61,33 @@ fn advance(
 
 // Collider `c` at time `t` (a dynamic ball where it is): place (xyz, radius or -1) and velocity.
 fn place(c: u32, t: f32) -> Placement {
-    let motion = colliders[4u * c + 2u];
+    let motion = colliders[c].motion;
     if motion.w > 0.0 {
-        return Placement(colliders[4u * c].xyz, motion.xyz);
+        return Placement(colliders[c].place.xyz, motion.xyz);
     }
-    return scripted_placement(c, colliders[4u * c].xyz, motion.xyz, colliders[4u * c + 3u], t);
+    return scripted_placement(c, colliders[c].place.xyz, motion.xyz, colliders[c].script, t);
 }
 
 @compute @workgroup_size(1)
 fn contacts() {
     let t = f32(status_words[3] + 1u) / u.inverse_dt;
     for (var k = 0u; k < u.collider_count; k++) {
-        let inverse_mass = colliders[4u * k + 2u].w;
+        let inverse_mass = colliders[k].motion.w;
         if inverse_mass <= 0.0 {
             continue;
         }
-        let restitution = colliders[4u * k + 3u].w;
+        let restitution = colliders[k].script.w;
         for (var o = 0u; o < u.collider_count; o++) {
             if o == k {
                 continue;
             }
-            let ball = colliders[4u * k];
+            let ball = colliders[k].place;
             let placed = place(o, t);
-            let other = vec4<f32>(placed.position, colliders[4u * o].w);
+            let other = vec4<f32>(placed.position, colliders[o].place.w);
             var normal: vec3<f32>;
             var depth: f32;
             if other.w < 0.0 {
-                normal = colliders[4u * o + 1u].xyz;
+                normal = colliders[o].surface.xyz;
                 depth = ball.w - dot(ball.xyz - other.xyz, normal);
             } else {
                 let offset = ball.xyz - round_center(o, other.xyz, ball.xyz);
@@ -98,13 +98,13 @@ fn contacts() {
             if depth <= 0.0 {
                 continue;
             }
-            let other_inverse_mass = colliders[4u * o + 2u].w;
+            let other_inverse_mass = colliders[o].motion.w;
             // The ball's share of push and impulse: all of it against a scripted obstacle.
             var share = 1.0;
             if other_inverse_mass > 0.0 {
                 share = inverse_mass / (inverse_mass + other_inverse_mass);
             }
-            let relative = colliders[4u * k + 2u].xyz - placed.velocity;
+            let relative = colliders[k].motion.xyz - placed.velocity;
             let approach = dot(relative, normal);
             var bounce = 0.0;
             if approach < 0.0 {
@@ -112,25 +112,25 @@ fn contacts() {
             }
             // Slip of the contact point; stopping it takes 2/7 of it from the centre's
             // velocity, the rest from the spin, within mu times the normal speed change.
-            let spin = colliders[4u * k + 1u];
+            let spin = colliders[k].surface;
             let arm = -normal * ball.w;
             let contact = relative + cross(spin.xyz, arm);
             let slip = contact - normal * dot(contact, normal);
             let wanted = slip * (2.0 / 7.0);
-            let limit = colliders[4u * o + 1u].w * bounce;
+            let limit = colliders[o].surface.w * bounce;
             var friction = wanted;
             if length(wanted) > limit {
                 friction = wanted * (limit / length(wanted));
             }
             let change = normal * bounce - friction;
-            colliders[4u * k + 2u] = vec4<f32>(colliders[4u * k + 2u].xyz + change * share, inverse_mass);
+            colliders[k].motion = vec4<f32>(colliders[k].motion.xyz + change * share, inverse_mass);
             let spun = spin.xyz + cross(arm, -friction) * (share * 2.5 / (ball.w * ball.w));
-            colliders[4u * k + 1u] = vec4<f32>(spun, spin.w);
-            colliders[4u * k] = vec4<f32>(ball.xyz + normal * (depth * share), ball.w);
+            colliders[k].surface = vec4<f32>(spun, spin.w);
+            colliders[k].place = vec4<f32>(ball.xyz + normal * (depth * share), ball.w);
             if other_inverse_mass > 0.0 {
                 let rest = 1.0 - share;
-                colliders[4u * o + 2u] = vec4<f32>(colliders[4u * o + 2u].xyz - change * rest, other_inverse_mass);
-                colliders[4u * o] = vec4<f32>(other.xyz - normal * (depth * rest), other.w);
+                colliders[o].motion = vec4<f32>(colliders[o].motion.xyz - change * rest, other_inverse_mass);
+                colliders[o].place = vec4<f32>(other.xyz - normal * (depth * rest), other.w);
             }
         }
     }

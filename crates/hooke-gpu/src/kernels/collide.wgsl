@@ -11,14 +11,14 @@
 // (a plane's normal, a ball's spin or a capsule's axis end - start xyz, friction), (velocity xyz, inverse mass; > 0 for a dynamic ball), (applied force xyz,
 // restitution; for a scripted collider: 1 if a capsule, 0, repeat, keyframes). A scripted collider's first
 // entry is its place at time 0; a dynamic ball's is where it is now (balls.wgsl moves it).
-@group(0) @binding(5) var<storage, read> colliders: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> colliders: array<Collider>;
 // The status buffer, read only here for its step counter (the fourth word).
 @group(0) @binding(6) var<storage, read> status_words: array<u32, 4>;
 // With dynamic balls: per vertex and collider, m c / dt^2 for the move c the collider made
 // (N), which balls.wgsl sums into the ball's reaction.
 @group(0) @binding(7) var<storage, read_write> reactions: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let v = flat_index(id, groups);
     if v >= u.vertex_count || scales[v].x <= 0.0 {
@@ -30,15 +30,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     // Colliders are placed where their script puts them at the end of this step.
     let t = f32(status_words[3] + 1u) * dt;
     for (var c = 0u; c < u.collider_count; c++) {
-        let motion = colliders[4u * c + 2u];
+        let motion = colliders[c].motion;
         var velocity = motion.xyz;
-        var shape = colliders[4u * c];
+        var shape = colliders[c].place;
         if motion.w <= 0.0 {
-            let placed = scripted_placement(c, shape.xyz, velocity, colliders[4u * c + 3u], t);
+            let placed = scripted_placement(c, shape.xyz, velocity, colliders[c].script, t);
             shape = vec4<f32>(placed.position, shape.w);
             velocity = placed.velocity;
         }
-        let surface = colliders[4u * c + 1u];
+        let surface = colliders[c].surface;
         var normal = surface.xyz;
         var depth: f32;
         if shape.w >= 0.0 {

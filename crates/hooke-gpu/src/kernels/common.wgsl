@@ -41,6 +41,19 @@ struct Status {
     step_counter: u32,
 }
 
+// Mirrors `GpuCollider` in layout.rs: one sphere, plane or capsule collider.
+struct Collider {
+    // Centre (sphere), point (plane) or start (capsule) xyz; radius w, or -1 for a plane.
+    place: vec4<f32>,
+    // A ball's spin, a plane's normal or a capsule's axis (end - start) xyz; friction w.
+    surface: vec4<f32>,
+    // Velocity xyz (m/s); inverse mass w, > 0 only for a dynamic ball.
+    motion: vec4<f32>,
+    // A dynamic ball: applied force xyz (N), restitution w. A scripted collider: 1 if a
+    // capsule, 0, 1 if its path repeats, its keyframe count.
+    script: vec4<f32>,
+}
+
 // Mirrors `GpuSpring` in layout.rs.
 struct Spring {
     a: u32,
@@ -49,17 +62,10 @@ struct Spring {
     stiffness: f32,
 }
 
-const WORKGROUP_SIZE: u32 = 64u;
 // Status: a first bad "vertex" with this bit set is the dynamic ball of that collider.
 const BALL_MARK: u32 = 0x80000000u;
 // Incidence entries: spring index plus this bit when the vertex is the spring's far end.
 const B_END: u32 = 0x80000000u;
-
-// Flattened invocation index of a 1D problem dispatched as a 2D grid of workgroups
-// (a single dimension is limited to 65535 workgroups).
-fn flat_index(id: vec3<u32>, groups: vec3<u32>) -> u32 {
-    return id.x + id.y * groups.x * WORKGROUP_SIZE;
-}
 
 // Force of a spring on its near end (paper eq. 1, sign of eq. 4): D (1 - l0 / |d|) d.
 fn spring_force(near: vec3<f32>, far: vec3<f32>, stiffness: f32, rest_length: f32) -> vec3<f32> {

@@ -1,4 +1,4 @@
-// Point forces, drags and wind (models documented in hooke_core::params), into a per-vertex
+// Point forces, drags and wind (models documented in hooke_core::control), into a per-vertex
 // extra-force buffer that `integrate` adds. Wind is computed per triangle, then gathered per
 // vertex over its triangles in a fixed order (deterministic).
 
@@ -15,7 +15,7 @@
 @group(0) @binding(7) var<storage, read> vertex_triangles: array<u32>;
 @group(0) @binding(8) var<storage, read_write> extra_forces: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn wind_triangles(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let t = flat_index(id, groups);
     if t >= u.triangle_count {
@@ -37,7 +37,7 @@ fn wind_triangles(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_wor
     triangle_forces[t] = vec4<f32>(force, 0.0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn vertices(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let v = flat_index(id, groups);
     if v >= u.vertex_count {

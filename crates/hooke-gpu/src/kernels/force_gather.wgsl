@@ -17,7 +17,7 @@ struct GatherEntry {
 @group(0) @binding(4) var<storage, read> entries: array<GatherEntry>;
 @group(0) @binding(5) var<storage, read_write> forces: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let slot = flat_index(id, groups);
     if slot >= u.vertex_count {

@@ -6,7 +6,7 @@
 @group(0) @binding(2) var<storage, read> springs: array<Spring>;
 @group(0) @binding(3) var<storage, read_write> spring_forces: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let s = flat_index(id, groups);
     if s >= u.spring_count {

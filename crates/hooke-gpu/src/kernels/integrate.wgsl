@@ -13,7 +13,7 @@
 @group(0) @binding(6) var<storage, read> extra_forces: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> status: Status;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let v = flat_index(id, groups);
     if v >= u.vertex_count {

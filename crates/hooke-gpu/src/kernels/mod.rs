@@ -1,12 +1,55 @@
-//! The WGSL kernels. Each source is `common.wgsl` followed by the kernel's own file.
+//! The compute kernels of a step, one `<name>.rs` beside each `<name>.wgsl`. Each `.rs` owns
+//! its pipelines and bind groups and records its passes with a typed `encode`; the buffers
+//! they bind belong to [`crate::GpuModel`] and [`crate::GpuState`] (or, for per-step scratch, to
+//! the kernel itself). Each source is `workgroup.wgsl` and `common.wgsl` followed by the
+//! kernel's own file.
+
+pub mod accumulate_atomic_f32;
+pub mod accumulate_blend;
+pub mod accumulate_fixed;
+pub mod accumulate_incidence;
+pub mod balls;
+pub mod collide;
+pub mod external;
+pub mod force_gather;
+pub mod force_springs;
+pub mod integrate;
+pub mod radix_sort;
+pub mod self_collide;
+pub mod tick;
+
+#[cfg(test)]
+mod testing;
+
+/// The buffers every scatter accumulation binds.
+#[derive(Debug)]
+pub struct ScatterBuffers<'a> {
+    pub uniforms: &'a wgpu::Buffer,
+    pub springs: &'a wgpu::Buffer,
+    /// One force per spring, from `force_springs`.
+    pub spring_forces: &'a wgpu::Buffer,
+    /// The per-vertex sums the accumulation writes.
+    pub forces: &'a wgpu::Buffer,
+    pub status: &'a wgpu::Buffer,
+    pub vertex_count: u32,
+    pub spring_count: u32,
+}
 
 /// A kernel's full source with the shared prelude (and `paths.wgsl` for collider kernels).
 macro_rules! kernel_source {
     ($file:literal) => {
-        concat!(include_str!("common.wgsl"), "\n", include_str!($file))
+        concat!(
+            include_str!("workgroup.wgsl"),
+            "\n",
+            include_str!("common.wgsl"),
+            "\n",
+            include_str!($file)
+        )
     };
     (with paths $file:literal) => {
         concat!(
+            include_str!("workgroup.wgsl"),
+            "\n",
             include_str!("common.wgsl"),
             "\n",
             include_str!("paths.wgsl"),
@@ -70,6 +113,25 @@ mod tests {
             Validator::new(ValidationFlags::all(), capabilities)
                 .validate(&module)
                 .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+        }
+    }
+
+    #[test]
+    fn wgsl_workgroup_size_is_the_one_dispatches_are_sized_for() {
+        for (name, source) in super::ALL {
+            let module = naga::front::wgsl::parse_str(source).expect("parses");
+            let compute = module
+                .entry_points
+                .iter()
+                .filter(|e| e.stage == naga::ShaderStage::Compute);
+            for entry in compute {
+                let size = entry.workgroup_size;
+                assert!(
+                    size == [crate::gpu::WORKGROUP_SIZE, 1, 1] || size == [1, 1, 1],
+                    "{name}.wgsl {}: workgroup size {size:?}",
+                    entry.name
+                );
+            }
         }
     }
 }

@@ -10,10 +10,10 @@ const MAX_KEYFRAMES: u32 = 8u;
 // capsule's; see collide.wgsl for the entries): a capsule's axis point closest to `p`.
 fn round_center(c: u32, place: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
     // Capsules are never dynamic, and mark entry 3's x.
-    if colliders[4u * c + 2u].w > 0.0 || colliders[4u * c + 3u].x < 0.5 {
+    if colliders[c].motion.w > 0.0 || colliders[c].script.x < 0.5 {
         return place;
     }
-    let axis = colliders[4u * c + 1u].xyz;
+    let axis = colliders[c].surface.xyz;
     let length2 = dot(axis, axis);
     if length2 == 0.0 {
         return place;

@@ -26,7 +26,7 @@ const WORDS: u32 = 2u;
 
 var<workgroup> digit_counts: array<atomic<u32>, 16>;
 var<workgroup> members: array<atomic<u32>, 32>;
-var<workgroup> partial_sums: array<u32, 64>;
+var<workgroup> partial_sums: array<u32, WORKGROUP_SIZE>;
 
 fn block_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
     return group.x + group.y * groups.x;
@@ -36,7 +36,7 @@ fn digit_of(key: u32) -> u32 {
     return (key >> su.shift) & (DIGITS - 1u);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn count_digits(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
@@ -59,7 +59,7 @@ fn count_digits(
 
 // One workgroup: each invocation sums a contiguous run of the histogram, the 64 run totals
 // are scanned in shared memory, then each run is rewritten as exclusive prefix sums.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn scan(@builtin(local_invocation_index) lane: u32) {
     let length = DIGITS * su.block_count;
     let run = (length + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
@@ -88,7 +88,7 @@ fn scan(@builtin(local_invocation_index) lane: u32) {
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn scatter(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,

@@ -40,7 +40,7 @@ fn cell_key(p: vec3<f32>) -> u32 {
     return hash & ((1u << cu.key_bits) - 1u);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn cell_keys(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let v = flat_index(id, groups);
     if v >= cu.vertex_count {
@@ -59,7 +59,7 @@ fn joined(a: u32, b: u32) -> bool {
     return false;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn correct(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let j = flat_index(id, groups);
     let n = cu.vertex_count;
@@ -107,7 +107,7 @@ fn push(p: u32, q: u32, xp: vec3<f32>, wp: f32, d2: f32) -> vec3<f32> {
     return d * (share * (cu.distance - l) / l);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn apply(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let v = flat_index(id, groups);
     if v >= cu.vertex_count {

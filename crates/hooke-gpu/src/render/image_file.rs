@@ -81,27 +81,50 @@ pub struct ImageDifference {
 }
 
 impl Image {
-    /// Compares with `expected`; a pixel differs when a channel is off by more than `threshold`.
-    pub fn difference(&self, expected: &Image, threshold: u8) -> Option<ImageDifference> {
+    /// Compares with `expected`; a pixel differs when every pixel of `expected` within `shift`
+    /// pixels of it (0: only the same one) has a channel off by more than `threshold`. A
+    /// `shift` of 1 lets edges and one-pixel lines land a pixel over, as rasterisers may.
+    pub fn difference(
+        &self,
+        expected: &Image,
+        threshold: u8,
+        shift: u32,
+    ) -> Option<ImageDifference> {
         if self.size != expected.size {
             return None;
         }
+        let [width, height] = self.size.map(|d| d as i64);
+        let pixel = |image: &Image, x: i64, y: i64| {
+            let at = 4 * (y * width + x) as usize;
+            [
+                image.rgba[at],
+                image.rgba[at + 1],
+                image.rgba[at + 2],
+                image.rgba[at + 3],
+            ]
+        };
+        let off = |a: [u8; 4], e: [u8; 4]| (0..4).map(|c| a[c].abs_diff(e[c])).max().unwrap_or(0);
+        let shift = i64::from(shift);
         let mut max = 0u8;
         let mut differing = 0usize;
         let mut diff = Vec::with_capacity(self.rgba.len());
-        for (a, e) in self.rgba.chunks(4).zip(expected.rgba.chunks(4)) {
-            let worst = a
-                .iter()
-                .zip(e)
-                .map(|(x, y)| x.abs_diff(*y))
-                .max()
-                .unwrap_or(0);
-            max = max.max(worst);
-            if worst > threshold {
-                differing += 1;
-                diff.extend([255, 0, 0, 255]);
-            } else {
-                diff.extend([e[0] / 3 + 170, e[1] / 3 + 170, e[2] / 3 + 170, 255]);
+        for y in 0..height {
+            for x in 0..width {
+                let a = pixel(self, x, y);
+                let e = pixel(expected, x, y);
+                let mut best = off(a, e);
+                for ny in (y - shift).max(0)..=(y + shift).min(height - 1) {
+                    for nx in (x - shift).max(0)..=(x + shift).min(width - 1) {
+                        best = best.min(off(a, pixel(expected, nx, ny)));
+                    }
+                }
+                max = max.max(best);
+                if best > threshold {
+                    differing += 1;
+                    diff.extend([255, 0, 0, 255]);
+                } else {
+                    diff.extend([e[0] / 3 + 170, e[1] / 3 + 170, e[2] / 3 + 170, 255]);
+                }
             }
         }
         Some(ImageDifference {

@@ -6,14 +6,12 @@
 mod camera;
 mod image_file;
 mod offscreen;
-mod offscreen_run;
 mod pick;
 mod readback;
 
 pub use camera::Camera;
 pub use image_file::{Image, ImageError};
 pub use offscreen::OffscreenTarget;
-pub use offscreen_run::{FrameError, OffscreenRun};
 pub use pick::{PickAt, PickedVertex, Picker};
 pub use readback::AsyncReadback;
 
@@ -26,7 +24,10 @@ use wgpu::util::DeviceExt;
 use crate::context::GpuContext;
 use crate::gpu::{self, bind_group, compute_pipeline, storage};
 
-const NORMALS: &str = include_str!("normals.wgsl");
+const NORMALS: &str = concat!(
+    include_str!("../kernels/workgroup.wgsl"),
+    include_str!("normals.wgsl")
+);
 const SCENE: &str = include_str!("scene.wgsl");
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
@@ -157,7 +158,7 @@ impl SceneRenderer {
             .iter()
             .map(|t| [t[0], t[1], t[2], 0])
             .collect();
-        let lists = vertex_triangle_lists(n, &model.triangles);
+        let lists = gpu::vertex_triangle_lists(n, &model.triangles);
         let bounds = SceneBounds::of(model);
         let uvs = texture_coordinates(model, &bounds);
         let rest_edges: Vec<[f32; 4]> = model
@@ -201,9 +202,9 @@ impl SceneRenderer {
         };
         let pipeline =
             |label: &str, vertex: &str, fragment: &str, topology: wgpu::PrimitiveTopology| {
-                context
-                    .device
-                    .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                gpu::render_pipeline(
+                    context,
+                    &wgpu::RenderPipelineDescriptor {
                         label: Some(label),
                         layout: None,
                         vertex: wgpu::VertexState {
@@ -226,7 +227,8 @@ impl SceneRenderer {
                         }),
                         multiview_mask: None,
                         cache: None,
-                    })
+                    },
+                )
             };
         let scope = context
             .device
@@ -235,19 +237,19 @@ impl SceneRenderer {
         let lines = wgpu::PrimitiveTopology::LineList;
         let renderer = Self {
             normals_pipeline: compute_pipeline(context, "normals", NORMALS, "main")?,
-            cloth: pipeline("cloth", "vs_cloth", "fs_cloth", list),
-            ground: pipeline("ground", "vs_ground", "fs_ground", list),
-            springs: pipeline("springs", "vs_springs", "fs_flat", lines),
-            pins: pipeline("pins", "vs_pins", "fs_flat", list),
-            wind: pipeline("wind arrows", "vs_wind", "fs_flat", lines),
-            sphere: pipeline("collider spheres", "vs_sphere", "fs_sphere", list),
+            cloth: pipeline("cloth", "vs_cloth", "fs_cloth", list)?,
+            ground: pipeline("ground", "vs_ground", "fs_ground", list)?,
+            springs: pipeline("springs", "vs_springs", "fs_flat", lines)?,
+            pins: pipeline("pins", "vs_pins", "fs_flat", list)?,
+            wind: pipeline("wind arrows", "vs_wind", "fs_flat", lines)?,
+            sphere: pipeline("collider spheres", "vs_sphere", "fs_sphere", list)?,
             sphere_mesh: storage(context, "unit sphere", &unit_sphere, none),
             sphere_mesh_vertices: unit_sphere.len() as u32,
             spheres: storage(context, "collider spheres", &[[0.0f32; 4]], none),
             sphere_count: 0,
             sphere_forces: storage(context, "ball forces", &[[0.0f32; 4]], none),
-            ball_force: pipeline("ball forces", "vs_ball_force", "fs_flat", lines),
-            capsule: pipeline("collider capsules", "vs_capsule", "fs_sphere", list),
+            ball_force: pipeline("ball forces", "vs_ball_force", "fs_flat", lines)?,
+            capsule: pipeline("collider capsules", "vs_capsule", "fs_sphere", list)?,
             capsules: storage(context, "collider capsules", &[[0.0f32; 4]; 2], none),
             capsule_count: 0,
             frame,
@@ -625,28 +627,6 @@ fn unit_sphere_triangles(segments: u32, rings: u32) -> Vec<[f32; 4]> {
         }
     }
     corners
-}
-
-/// `vertex_count + 1` offsets, then each vertex's triangle indices.
-fn vertex_triangle_lists(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<u32> {
-    let mut offsets = vec![0u32; vertex_count + 1];
-    for t in triangles {
-        for &v in t {
-            offsets[v as usize + 1] += 1;
-        }
-    }
-    for v in 0..vertex_count {
-        offsets[v + 1] += offsets[v];
-    }
-    let mut cursor = offsets.clone();
-    offsets.resize(vertex_count + 1 + 3 * triangles.len(), 0);
-    for (index, t) in triangles.iter().enumerate() {
-        for &v in t {
-            offsets[vertex_count + 1 + cursor[v as usize] as usize] = index as u32;
-            cursor[v as usize] += 1;
-        }
-    }
-    offsets
 }
 
 /// Texture coordinates from the rest shape, over the two axes of largest extent.

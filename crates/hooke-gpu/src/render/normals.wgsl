@@ -8,9 +8,9 @@
 @group(0) @binding(3) var<storage, read_write> normals: array<vec4<f32>>;
 @group(0) @binding(4) var<uniform> counts: vec4<u32>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let v = id.x + id.y * groups.x * 64u;
+    let v = flat_index(id, groups);
     let vertex_count = counts.x;
     if v >= vertex_count {
         return;

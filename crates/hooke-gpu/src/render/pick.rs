@@ -9,7 +9,10 @@ use super::readback::AsyncReadback;
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::{self, bind_group, compute_pipeline};
 
-pub(super) const PICK: &str = include_str!("pick.wgsl");
+pub(super) const PICK: &str = concat!(
+    include_str!("../kernels/workgroup.wgsl"),
+    include_str!("pick.wgsl")
+);
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

@@ -38,17 +38,17 @@ fn key_of(v: u32) -> u32 {
     return (u32(distance * 4095.0) << 20u) | u32(ndc.z * 1048575.0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn closest(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let v = id.x + id.y * groups.x * 64u;
+    let v = flat_index(id, groups);
     if v < pick.vertex_count {
         atomicMin(&result.key, key_of(v));
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn which(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let v = id.x + id.y * groups.x * 64u;
+    let v = flat_index(id, groups);
     if v < pick.vertex_count {
         let key = key_of(v);
         if key != 0xffffffffu && key == atomicLoad(&result.key) {

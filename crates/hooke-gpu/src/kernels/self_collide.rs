@@ -1,26 +1,18 @@
-//! The GPU self-collision pass (`self_collide.wgsl`, `radix_sort.wgsl`): per staggered grid,
+//! `self_collide.wgsl` (with `radix_sort.wgsl`): approximate self-collision, per staggered grid:
 //! cell keys, a radix sort, window corrections and their application, all recorded into one
 //! compute pass after the collider pass. Same rule as `hooke_core::selfcollide`.
 
-use hooke_core::Model;
 use hooke_core::selfcollide::{self, SelfCollision};
 
+use super::radix_sort::RadixSort;
 use crate::GpuError;
 use crate::context::GpuContext;
 use crate::gpu::{bind_group, compute_pipeline, dispatch_in, storage, uniform, zeroed};
-use crate::kernels;
 use crate::layout::SelfUniforms;
-use crate::radix_sort::RadixSort;
+use crate::model::GpuModel;
+use crate::state::GpuState;
 
-/// Buffers the pass works on, owned by the solver.
-pub struct SolverBuffers<'a> {
-    /// Both position buffers; the pass works on the one that receives the step's result.
-    pub positions: &'a [wgpu::Buffer; 2],
-    pub deltas: &'a wgpu::Buffer,
-    /// `(dt^2 / m, ..)` per vertex, zero for pinned ones: the weights of a pair's push.
-    pub scales: &'a wgpu::Buffer,
-}
-
+#[derive(Debug)]
 pub struct SelfCollidePass {
     vertex_count: u32,
     sort: RadixSort,
@@ -35,12 +27,15 @@ pub struct SelfCollidePass {
 }
 
 impl SelfCollidePass {
+    /// The pass works on the position buffer that receives the step's result; a pair's push is
+    /// weighted by the model's `dt^2 / m` per vertex (zero for pinned ones).
     pub fn new(
         context: &GpuContext,
-        model: &Model,
+        gpu_model: &GpuModel,
+        state: &GpuState,
         config: &SelfCollision,
-        buffers: SolverBuffers<'_>,
     ) -> Result<Self, GpuError> {
+        let model = &gpu_model.model;
         let n = model.vertex_count() as u32;
         let key_bits = selfcollide::key_bits(model.vertex_count());
         let sort = RadixSort::new(context, n, key_bits)?;
@@ -78,21 +73,21 @@ impl SelfCollidePass {
                 )
             })
             .collect();
-        let cell_keys = compute_pipeline(context, "cell keys", kernels::SELF_COLLIDE, "cell_keys")?;
+        let cell_keys = compute_pipeline(context, "cell keys", super::SELF_COLLIDE, "cell_keys")?;
         let correct = compute_pipeline(
             context,
             "self-collision correct",
-            kernels::SELF_COLLIDE,
+            super::SELF_COLLIDE,
             "correct",
         )?;
         let apply = compute_pipeline(
             context,
             "self-collision apply",
-            kernels::SELF_COLLIDE,
+            super::SELF_COLLIDE,
             "apply",
         )?;
         // The pass works on the buffer the step writes: positions[1 - current].
-        let target = |current: usize| &buffers.positions[1 - current];
+        let target = |current: usize| &state.positions[1 - current];
         let key_groups = uniforms
             .iter()
             .map(|u| {
@@ -121,7 +116,7 @@ impl SelfCollidePass {
                     (1, target(current).as_entire_binding()),
                     (2, sort.keys().as_entire_binding()),
                     (3, sort.values().as_entire_binding()),
-                    (4, buffers.scales.as_entire_binding()),
+                    (4, gpu_model.scales.as_entire_binding()),
                     (5, offsets.as_entire_binding()),
                     (6, neighbors.as_entire_binding()),
                     (7, corrections.as_entire_binding()),
@@ -137,7 +132,7 @@ impl SelfCollidePass {
                     (0, uniforms[0].as_entire_binding()),
                     (7, corrections.as_entire_binding()),
                     (8, target(current).as_entire_binding()),
-                    (9, buffers.deltas.as_entire_binding()),
+                    (9, state.deltas.as_entire_binding()),
                 ],
             )
         });

@@ -1,13 +1,14 @@
 //! Simulating and drawing without a window: each frame is one submission of the simulation
-//! passes and the render pass; only the finished image is read back.
+//! passes (or, on the CPU, an upload of its positions) and the render pass; only the finished
+//! image is read back.
 
 use std::sync::Arc;
 
-use hooke_core::{Model, SimError, SimParams, Solver};
+use hooke_core::SimError;
+use hooke_gpu::render::{Camera, Image, OffscreenTarget, RenderOptions, SceneRenderer};
+use hooke_gpu::{GpuContext, GpuError, wgpu};
 
-use super::{Camera, Image, OffscreenTarget, RenderOptions, SceneRenderer};
-use crate::context::{GpuContext, GpuError};
-use crate::solver::{GpuMethod, GpuSolver};
+use crate::{EngineError, Simulation};
 
 #[derive(Debug, thiserror::Error)]
 pub enum FrameError {
@@ -17,64 +18,70 @@ pub enum FrameError {
     Gpu(#[from] GpuError),
 }
 
-/// A solver, a renderer and an offscreen image.
+/// A simulation, a renderer and an offscreen image.
 #[derive(Debug)]
 pub struct OffscreenRun {
-    pub solver: GpuSolver,
+    pub simulation: Simulation,
+    context: Arc<GpuContext>,
     renderer: SceneRenderer,
     target: OffscreenTarget,
     readback: wgpu::Buffer,
     pub camera: Camera,
     pub options: RenderOptions,
-    params: SimParams,
 }
 
 impl OffscreenRun {
-    pub fn new(
-        context: Arc<GpuContext>,
-        model: &Model,
-        params: &SimParams,
-        method: GpuMethod,
-        size: [u32; 2],
-    ) -> Result<Self, GpuError> {
+    /// Draws `simulation` (on any solver that has a GPU to draw with) at `size` pixels.
+    pub fn new(simulation: Simulation, size: [u32; 2]) -> Result<Self, EngineError> {
+        let context = match simulation.gpu() {
+            Some(context) => Arc::clone(context),
+            None => {
+                return Err(EngineError::Gpu(GpuError::Validation(
+                    "drawing needs a simulation built with a GPU context".into(),
+                )));
+            }
+        };
+        let model = simulation.model();
         let mut renderer = SceneRenderer::new(&context, model, OffscreenTarget::FORMAT)?;
-        renderer.set_colliders(&context, &params.colliders);
+        renderer.set_colliders(&context, &model.collision.colliders);
         let target = OffscreenTarget::new(&context, size);
         let readback = target.readback_buffer(&context);
         let options = RenderOptions {
-            wind: params.wind.map(|w| w.velocity.as_vec3()),
+            wind: simulation.control().wind.map(|w| w.velocity.as_vec3()),
             ..Default::default()
         };
         Ok(Self {
             camera: Camera::framing(&renderer.bounds()),
-            solver: GpuSolver::new(context, model, params, method)?,
+            simulation,
+            context,
             renderer,
             target,
             readback,
             options,
-            params: params.clone(),
         })
     }
 
     /// Advances `steps` steps, draws, and returns the image.
     pub fn frame(&mut self, steps: u32) -> Result<Image, FrameError> {
-        let context = Arc::clone(self.solver.context());
+        let context = Arc::clone(&self.context);
         let mut encoder = context
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame"),
             });
-        self.solver.encode_steps(&mut encoder, steps);
-        let t = self.solver.steps_taken() as f64 * self.params.dt;
-        let colliders = hooke_core::collide::placed(&self.params.colliders, t);
-        self.renderer.set_colliders(&context, &colliders);
+        self.simulation.encode_frame(&mut encoder, steps)?;
+        self.renderer
+            .set_colliders(&context, &self.simulation.colliders_to_draw());
         // Dynamic balls are where the GPU put them: copied, not read back.
-        self.solver
+        self.simulation
             .copy_spheres(&mut encoder, self.renderer.sphere_buffer());
+        let positions = self.simulation.positions_buffer().ok_or_else(|| {
+            GpuError::Validation("the reference solver has no positions to draw".into())
+        })?;
         self.renderer.encode(
             &context,
             &mut encoder,
-            self.solver.current_positions(),
+            positions,
             &self.target.view,
             self.target.size,
             &self.camera,
@@ -83,7 +90,9 @@ impl OffscreenRun {
         self.target.encode_copy(&mut encoder, &self.readback);
         context.queue.submit([encoder.finish()]);
         let rgba = self.target.read_rgba(&context, &self.readback)?;
-        self.solver.check()?;
+        if let Some(solver) = self.simulation.gpu_solver_mut() {
+            solver.check()?;
+        }
         Ok(Image {
             size: self.target.size,
             rgba,
@@ -91,6 +100,6 @@ impl OffscreenRun {
     }
 
     pub fn steps_taken(&self) -> u64 {
-        self.solver.steps_taken()
+        self.simulation.steps_taken()
     }
 }

@@ -1,4 +1,7 @@
-//! Per-run simulation parameters in SI units: time step, damping and external forces.
+//! [`Control`]: the per-step inputs a user or a script changes while the simulation runs
+//! (drags, point forces, wind, pushes on balls). A solver writes them into buffers it already
+//! has. What stays fixed while stepping is in [`crate::Model`], the integrator's constants in
+//! [`crate::Material`].
 //!
 //! External forces `F_ext` (paper eq. 2, 4) are the sum of:
 //! - gravity: `m_i * gravity`;
@@ -12,9 +15,6 @@
 //!   moves with the air, so it cannot pump energy into the system without bound.
 
 use glam::DVec3;
-
-use crate::collide::Collider;
-use crate::selfcollide::SelfCollision;
 
 /// A constant force on one vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,45 +43,28 @@ pub struct Wind {
     pub coefficient: f64,
 }
 
-/// Everything that drives a step besides the model and the state.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SimParams {
-    /// Time step `dt`, s.
-    pub dt: f64,
-    /// Damping constant `c` of eq. 2, kg/s.
-    pub damping: f64,
-    /// Gravitational acceleration, m/s^2.
-    pub gravity: DVec3,
+/// A force on a dynamic ball, added to the constant force its collider was given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BallPush {
+    /// Index of the dynamic ball among the model's colliders.
+    pub collider: usize,
+    /// N.
+    pub force: DVec3,
+}
+
+/// The per-step inputs: what a user or a script changes while the simulation runs. A solver
+/// writes them into buffers it already has.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Control {
     pub wind: Option<Wind>,
     pub point_forces: Vec<PointForce>,
     pub drags: Vec<Drag>,
-    /// Spheres and planes the cloth cannot enter (see [`crate::collide`]).
-    pub colliders: Vec<Collider>,
-    /// How far from a collider's surface the cloth is held, m (its half thickness).
-    pub collision_thickness: f64,
-    /// Approximate self-collision by binning (see [`crate::selfcollide`]); off when `None`.
-    pub self_collision: Option<SelfCollision>,
+    pub ball_pushes: Vec<BallPush>,
 }
 
-impl SimParams {
-    /// True if a step has collision work: colliders or self-collision.
-    pub fn collides(&self) -> bool {
-        !self.colliders.is_empty() || self.self_collision.is_some()
-    }
-}
-
-impl Default for SimParams {
-    fn default() -> Self {
-        Self {
-            dt: 1e-3,
-            damping: 0.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-            wind: None,
-            point_forces: Vec::new(),
-            drags: Vec::new(),
-            colliders: Vec::new(),
-            collision_thickness: 0.0,
-            self_collision: None,
-        }
+impl Control {
+    /// True if the control puts forces on the cloth (point forces, drags or wind).
+    pub fn acts_on_cloth(&self) -> bool {
+        self.wind.is_some() || !self.point_forces.is_empty() || !self.drags.is_empty()
     }
 }

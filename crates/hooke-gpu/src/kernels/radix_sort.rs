@@ -8,7 +8,6 @@ use crate::context::GpuContext;
 use crate::gpu::{
     WORKGROUP_SIZE, bind_group, compute_pipeline, dispatch_in, read_back, uniform, zeroed,
 };
-use crate::kernels;
 use crate::layout::SortUniforms;
 
 const BITS_PER_PASS: u32 = 4;
@@ -42,9 +41,9 @@ impl RadixSort {
         let histogram_bytes = 4 * DIGITS * u64::from(block_count);
         let histogram = zeroed(context, "sort histogram", histogram_bytes, usage);
         let count_digits =
-            compute_pipeline(context, "radix count", kernels::RADIX_SORT, "count_digits")?;
-        let scan = compute_pipeline(context, "radix scan", kernels::RADIX_SORT, "scan")?;
-        let scatter = compute_pipeline(context, "radix scatter", kernels::RADIX_SORT, "scatter")?;
+            compute_pipeline(context, "radix count", super::RADIX_SORT, "count_digits")?;
+        let scan = compute_pipeline(context, "radix scan", super::RADIX_SORT, "scan")?;
+        let scatter = compute_pipeline(context, "radix scatter", super::RADIX_SORT, "scatter")?;
         let passes = (0..pass_count)
             .map(|pass| {
                 let uniforms = SortUniforms {

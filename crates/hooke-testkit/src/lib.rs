@@ -1,87 +1,38 @@
-//! Small scenes shared by the test suites of several crates.
+//! Test fixtures shared by the test suites of several crates (a dev-dependency only): small
+//! scenes, kept as files in `scenes/`, and checks that every solver must pass, written once.
+#![allow(clippy::unwrap_used, clippy::missing_panics_doc)] // test code: a failure is a panic
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::Solver;
-use crate::scene::{Scene, SceneFile};
+use hooke_core::Solver;
+use hooke_core::scene::{Scene, SceneFile};
 
-/// Builds a scene from TOML text and runs it at half the stable time step (test scenes compare
+/// The folder of the fixture scenes.
+pub fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
+}
+
+/// Builds fixture scene `name` and runs it at half the stable time step (test scenes compare
 /// solvers, so they stay well inside the bound).
-fn build(text: &str, name: &str) -> Scene {
-    let mut scene = SceneFile::parse(text, name)
-        .and_then(|file| file.build(Path::new(name), false))
+fn build(name: &str) -> Scene {
+    let path = scenes_dir().join(format!("{name}.toml"));
+    let mut scene = SceneFile::load(&path)
+        .and_then(|file| file.build(&path, false))
         .unwrap_or_else(|e| panic!("test scene {name}: {e}"));
-    scene.params.dt = 0.5 * scene.max_stable_dt;
+    scene.material.dt = 0.5 * scene.max_stable_dt;
     scene
 }
 
 /// A free 20 x 20 cloth, 1 m wide, dropped from 1 m onto a ball of radius 0.3 m resting on the
 /// ground plane; thickness 1 cm, some friction. Built at 0.5 of the stable dt.
 pub fn cloth_onto_ball() -> Scene {
-    let text = r#"
-[mesh]
-generator = "grid"
-resolution = [20, 20]
-center = [0.0, 1.0, 0.0]
-
-[material]
-mass = { total = 0.1 }
-stiffness = 60.0
-damping = 0.002
-
-[simulation]
-dt = "auto"
-
-[collision]
-thickness = 0.01
-
-[[collider]]
-kind = "sphere"
-center = [0.1, 0.3, 0.0]
-radius = 0.3
-friction = 0.3
-
-[[collider]]
-kind = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-friction = 0.5
-"#;
-    build(text, "cloth-onto-ball")
+    build("cloth-onto-ball")
 }
 
 /// A 16 x 16 curtain hanging from its top edge, and a ball of radius 0.15 m moving through it
 /// along +z at 0.5 m/s (a kinematic collider); thickness 5 mm. Built at 0.5 of the stable dt.
 pub fn curtain_and_moving_ball() -> Scene {
-    let text = r#"
-[mesh]
-generator = "grid"
-resolution = [16, 16]
-plane = "xy"
-center = [0.0, 1.5, 0.0]
-
-[material]
-mass = { total = 0.1 }
-stiffness = 60.0
-damping = 0.002
-
-[pins]
-select = ["top-edge"]
-
-[simulation]
-dt = "auto"
-
-[collision]
-thickness = 0.005
-
-[[collider]]
-kind = "sphere"
-center = [0.0, 1.4, -0.3]
-radius = 0.15
-friction = 0.3
-velocity = [0.0, 0.0, 0.5]
-"#;
-    build(text, "curtain-and-moving-ball")
+    build("curtain-and-moving-ball")
 }
 
 /// The paper's Fig. 3 in small: an upright 24 x 24 cloth, 0.6 m wide, lands on its lower edge,
@@ -89,99 +40,41 @@ velocity = [0.0, 0.0, 0.5]
 /// unjoined vertices 13 mm apart (about half the spacing), K = 4 grids of 26 mm cells.
 /// Built at 0.5 of the stable dt.
 pub fn folding_cloth() -> Scene {
-    build(FOLDING_CLOTH, "folding-cloth")
+    build("folding-cloth")
 }
 
 /// The scene file of [`folding_cloth`], for tests that go through the command line.
-pub const FOLDING_CLOTH: &str = r#"
-[mesh]
-generator = "grid"
-resolution = [24, 24]
-size = [0.6, 0.6]
-plane = "xy"
-center = [0.0, 0.32, 0.0]
-
-[material]
-mass = { total = 0.05 }
-stiffness = 40.0
-damping = 0.0002
-
-[simulation]
-dt = "auto"
-
-[wind]
-velocity = [0.0, 0.0, 0.6]
-coefficient = 0.3
-
-[collision]
-thickness = 0.004
-
-[[collider]]
-kind = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-friction = 0.6
-
-[self_collision]
-distance = 0.013
-grids = 4
-window = 4
-"#;
+pub const FOLDING_CLOTH: &str = include_str!("../scenes/folding-cloth.toml");
 
 /// Unjoined vertex pairs closer than half the self-collision distance: layers of cloth that
 /// passed into each other.
-pub fn interpenetrating_pairs(scene: &Scene, state: &crate::State) -> usize {
+pub fn interpenetrating_pairs(scene: &Scene, state: &hooke_core::State) -> usize {
     let config = scene
-        .params
+        .model
+        .collision
         .self_collision
         .expect("a scene with self-collision");
     let positions: Vec<glam::Vec3> = state.positions.iter().map(|p| p.as_vec3()).collect();
-    crate::selfcollide::exact_pairs(&positions, &scene.model.adjacency, 0.5 * config.distance).len()
+    hooke_core::selfcollide::exact_pairs(&positions, &scene.model.adjacency, 0.5 * config.distance)
+        .len()
 }
 
 /// A 16 x 16 sheet, 1 m wide, pinned at its corners, and a dynamic ball (0.2 kg, radius
 /// 0.15 m) dropped onto its middle from 0.3 m above; thickness 5 mm. Built at 0.5 of the
 /// stable dt.
 pub fn ball_onto_sheet() -> Scene {
-    let text = r#"
-[mesh]
-generator = "grid"
-resolution = [16, 16]
-center = [0.0, 1.0, 0.0]
-
-[material]
-mass = { total = 0.1 }
-stiffness = 200.0
-damping = 0.03
-
-[pins]
-select = ["corners"]
-
-[simulation]
-dt = "auto"
-
-[collision]
-thickness = 0.005
-
-[[collider]]
-kind = "sphere"
-center = [0.0, 1.45, 0.0]
-radius = 0.15
-mass = 0.2
-friction = 0.3
-"#;
-    build(text, "ball-onto-sheet")
+    build("ball-onto-sheet")
 }
 
 /// Drops the ball of `ball_onto_sheet` and checks the exchange of momentum: it falls freely
 /// until it meets the sheet, is then slowed by it (the sheet takes its momentum), comes to
 /// rest on it, and its weight ends up on the pins.
 pub fn check_ball_dropped_on_sheet(solver: &mut dyn Solver, scene: &Scene) {
-    use crate::collide::Shape;
-    let dt = scene.params.dt;
-    let g = scene.params.gravity.y;
+    use hooke_core::collide::Shape;
+    let dt = scene.material.dt;
+    let g = scene.material.gravity.y;
     let ball = |solver: &dyn Solver| {
-        let collider = solver.colliders()[0];
+        let collider = solver.colliders().unwrap()[0];
         let Shape::Sphere { center, .. } = collider.shape else {
             panic!("a sphere")
         };
@@ -207,6 +100,7 @@ pub fn check_ball_dropped_on_sheet(solver: &mut dyn Solver, scene: &Scene) {
         slowed |= velocity.y > 0.5 * free_fall && t > 0.3;
         let cloth_low = solver
             .read_state()
+            .unwrap()
             .positions
             .iter()
             .map(|p| p.y)
@@ -239,7 +133,7 @@ pub fn check_ball_dropped_on_sheet(solver: &mut dyn Solver, scene: &Scene) {
     );
     // At rest the ball's weight has gone through the sheet to the pins (time-averaged).
     let total = mean_pin_reaction(solver, scene, 500);
-    let weight = (scene.model.total_mass() + 0.2) * scene.params.gravity;
+    let weight = (scene.model.total_mass() + 0.2) * scene.material.gravity;
     assert!(
         (total + weight).length() < 0.02 * weight.length(),
         "{}: pins hold {total}, cloth and ball weigh {weight}",
@@ -254,8 +148,8 @@ pub fn mean_pin_reaction(solver: &mut dyn Solver, scene: &Scene, steps: u32) -> 
     let mut total = glam::DVec3::ZERO;
     for _ in 0..steps {
         solver.step(1).expect("stable");
-        let positions = solver.read_state().positions;
-        total += crate::diagnostics::pin_reactions(&scene.model, &positions, &scene.params)
+        let positions = solver.read_state().unwrap().positions;
+        total += hooke_core::diagnostics::pin_reactions(&scene.model, &positions, &scene.material)
             .iter()
             .map(|(_, r)| *r)
             .sum::<glam::DVec3>();
@@ -267,7 +161,7 @@ pub fn mean_pin_reaction(solver: &mut dyn Solver, scene: &Scene, steps: u32) -> 
 /// its first step: every solver must say so, naming the step and the collider.
 pub fn exploding_ball() -> Scene {
     let mut scene = ball_onto_sheet();
-    let dynamics = scene.params.colliders[0]
+    let dynamics = scene.model.collision.colliders[0]
         .dynamics
         .as_mut()
         .expect("a dynamic ball");
@@ -280,7 +174,7 @@ pub fn exploding_ball() -> Scene {
 /// z = -0.6 to 0.6 at 0.3 m height, radius 0.1 m: the cloth folds over a bar.
 pub fn cloth_onto_capsule() -> Scene {
     let mut scene = cloth_onto_ball();
-    scene.params.colliders[0].shape = crate::collide::Shape::Capsule {
+    scene.model.collision.colliders[0].shape = hooke_core::collide::Shape::Capsule {
         start: glam::DVec3::new(0.0, 0.3, -0.6),
         end: glam::DVec3::new(0.0, 0.3, 0.6),
         radius: 0.1,
@@ -293,13 +187,13 @@ pub fn cloth_onto_capsule() -> Scene {
 /// reaches a round one. Projection puts a vertex exactly at the thickness: `tolerance` covers
 /// float32 rounding (1e-6 m on the CPU; GPU sqrt and division may be 2.5 ulp off, 1e-5 m).
 pub fn check_cloth_stays_out(solver: &mut dyn Solver, scene: &Scene, tolerance: f64) {
-    use crate::collide::Shape;
-    let thickness = scene.params.collision_thickness;
+    use hooke_core::collide::Shape;
+    let thickness = scene.model.collision.thickness;
     let mut touched = false;
     for _ in 0..40 {
         solver.step(100).expect("stable");
-        for p in solver.read_state().positions {
-            for collider in &scene.params.colliders {
+        for p in solver.read_state().unwrap().positions {
+            for collider in &scene.model.collision.colliders {
                 let clearance = collider.shape.clearance(p);
                 assert!(
                     clearance > thickness - tolerance,
@@ -326,14 +220,14 @@ pub fn check_cloth_stays_out(solver: &mut dyn Solver, scene: &Scene, tolerance: 
 /// [`check_cloth_stays_out`]) and that the ball, travelling from z = -0.3 past the curtain at
 /// z = 0, drags cloth more than 0.1 m along.
 pub fn check_curtain_pushed(solver: &mut dyn Solver, scene: &Scene, tolerance: f64) {
-    let ball = scene.params.colliders[0];
-    let thickness = scene.params.collision_thickness;
+    let ball = scene.model.collision.colliders[0];
+    let thickness = scene.model.collision.thickness;
     let mut pushed: f64 = 0.0;
     for _ in 0..30 {
         solver.step(100).expect("stable");
-        let t = solver.steps_taken() as f64 * scene.params.dt;
+        let t = solver.steps_taken() as f64 * scene.material.dt;
         let ball_now = ball.at(t).shape;
-        for p in solver.read_state().positions {
+        for p in solver.read_state().unwrap().positions {
             let clearance = ball_now.clearance(p);
             assert!(
                 clearance > thickness - tolerance,

@@ -1,0 +1,255 @@
+//! [`SceneFile::build`]: range checks naming the field, the mesh, the pins, the model and the
+//! time step.
+
+use std::path::Path;
+
+use glam::DVec3;
+
+use super::{
+    MeshGenerator, Scene, SceneError, SceneFile, StiffnessKind, TimeStep, require, select_vertices,
+};
+use crate::mesh::{self, Mesh, MeshWarning};
+use crate::stability::{AUTO_DT_SAFETY, stability_limit};
+use crate::{MassModel, Material, Model, ModelOptions, StiffnessModel};
+
+impl SceneFile {
+    /// Checks every value, builds the mesh and model, and settles the time step.
+    ///
+    /// `path` locates mesh files and names the scene in errors. A dt above the stability bound is
+    /// an error unless `allow_unstable`.
+    pub fn build(&self, path: &Path, allow_unstable: bool) -> Result<Scene, SceneError> {
+        let path_name = path.display().to_string();
+        let invalid = |field: &str, message: String| SceneError::Invalid {
+            path: path_name.clone(),
+            field: field.to_owned(),
+            message,
+        };
+        let (mesh, mesh_warnings) = self.build_mesh(path, &invalid)?;
+
+        let material = &self.material;
+        let mass = match (
+            material.mass.total,
+            material.mass.per_vertex,
+            material.mass.area_density,
+        ) {
+            (Some(total), None, None) => MassModel::TotalUniform(total),
+            (None, Some(m), None) => MassModel::PerVertex(m),
+            (None, None, Some(rho)) => MassModel::AreaDensity(rho),
+            _ => {
+                return Err(invalid(
+                    "material.mass",
+                    "give exactly one of total, per_vertex or area_density".into(),
+                ));
+            }
+        };
+        for (field, value) in [
+            ("material.mass.total", material.mass.total),
+            ("material.mass.per_vertex", material.mass.per_vertex),
+            ("material.mass.area_density", material.mass.area_density),
+            ("material.stiffness", Some(material.stiffness)),
+            (
+                "material.rest_length_scale",
+                Some(material.rest_length_scale),
+            ),
+        ] {
+            if let Some(value) = value {
+                require(value > 0.0 && value.is_finite(), || {
+                    invalid(field, format!("must be a positive number, found {value}"))
+                })?;
+            }
+        }
+        require(
+            material.damping >= 0.0 && material.damping.is_finite(),
+            || {
+                invalid(
+                    "material.damping",
+                    format!("must be zero or positive, found {}", material.damping),
+                )
+            },
+        )?;
+        let stiffness = match material.stiffness_model {
+            StiffnessKind::Uniform => StiffnessModel::Uniform(material.stiffness),
+            StiffnessKind::InverseRestLength => {
+                StiffnessModel::InverseRestLength(material.stiffness)
+            }
+        };
+        let pinned = self.resolve_pins(&mesh, &invalid)?;
+        let options = ModelOptions {
+            stiffness,
+            mass,
+            rest_length_scale: material.rest_length_scale,
+            pinned,
+        };
+        let mut model =
+            Model::from_mesh(&mesh, &options).map_err(|e| invalid("material", e.to_string()))?;
+
+        let (control, collision) = self.build_inputs(&mesh, &invalid)?;
+        model.collision = collision;
+        let limit = stability_limit(&model, material.damping);
+        let dt = match self.simulation.dt {
+            TimeStep::Auto => {
+                require(limit.max_dt.is_finite(), || {
+                    invalid(
+                        "simulation.dt",
+                        "\"auto\" needs springs or damping to bound the step; give dt in seconds"
+                            .into(),
+                    )
+                })?;
+                AUTO_DT_SAFETY * limit.max_dt
+            }
+            TimeStep::Seconds(dt) => {
+                require(dt > 0.0 && dt.is_finite(), || {
+                    invalid(
+                        "simulation.dt",
+                        format!("must be a positive number of seconds, found {dt}"),
+                    )
+                })?;
+                if dt > limit.max_dt && !allow_unstable {
+                    return Err(SceneError::UnstableTimeStep {
+                        path: path_name,
+                        dt,
+                        max_dt: limit.max_dt,
+                        vertex: limit.limiting_vertex.unwrap_or(0),
+                    });
+                }
+                dt
+            }
+        };
+        require(self.simulation.frame_every > 0, || {
+            invalid("simulation.frame_every", "must be at least 1".into())
+        })?;
+        let name = self.name.clone().unwrap_or_else(|| {
+            path.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scene".to_owned())
+        });
+        Ok(Scene {
+            name,
+            mesh,
+            mesh_warnings,
+            model,
+            material: Material {
+                dt,
+                damping: material.damping,
+                gravity: DVec3::from_array(self.simulation.gravity),
+                stiffness_scale: 1.0,
+            },
+            control,
+            steps: self.simulation.steps,
+            frame_every: self.simulation.frame_every,
+            max_stable_dt: limit.max_dt,
+        })
+    }
+
+    fn build_mesh(
+        &self,
+        path: &Path,
+        invalid: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<(Mesh, Vec<MeshWarning>), SceneError> {
+        let section = &self.mesh;
+        let center = DVec3::from_array(section.center);
+        if section.generator != MeshGenerator::File {
+            require(
+                section.size.iter().all(|s| *s > 0.0 && s.is_finite()),
+                || {
+                    invalid(
+                        "mesh.size",
+                        format!("both sides must be positive, found {:?}", section.size),
+                    )
+                },
+            )?;
+        }
+        let mesh = match section.generator {
+            MeshGenerator::Grid => {
+                let [columns, rows] = section.resolution.ok_or_else(|| {
+                    invalid(
+                        "mesh.resolution",
+                        "a grid needs resolution = [columns, rows]".into(),
+                    )
+                })?;
+                require(
+                    (2..=8192).contains(&columns) && (2..=8192).contains(&rows),
+                    || {
+                        invalid(
+                            "mesh.resolution",
+                            format!(
+                                "each side must be 2..=8192 vertices, found [{columns}, {rows}]"
+                            ),
+                        )
+                    },
+                )?;
+                mesh::grid(columns, rows, section.size, section.plane, center)
+            }
+            MeshGenerator::Irregular => {
+                let vertices = section.vertices.ok_or_else(|| {
+                    invalid(
+                        "mesh.vertices",
+                        "an irregular mesh needs vertices = N".into(),
+                    )
+                })?;
+                require((16..=50_000_000).contains(&vertices), || {
+                    invalid(
+                        "mesh.vertices",
+                        format!("must be 16..=50000000, found {vertices}"),
+                    )
+                })?;
+                mesh::irregular(vertices, section.size, section.seed, section.plane, center)
+            }
+            MeshGenerator::File => {
+                let relative = section.path.as_ref().ok_or_else(|| {
+                    invalid(
+                        "mesh.path",
+                        "generator = \"file\" needs path = \"mesh.obj\"".into(),
+                    )
+                })?;
+                let file = path.parent().unwrap_or(Path::new("")).join(relative);
+                let (mut mesh, warnings) = mesh::load_mesh(&file)?;
+                for p in &mut mesh.positions {
+                    *p += center;
+                }
+                return Ok((mesh, warnings));
+            }
+        };
+        let warnings = mesh
+            .validate(&format!("{} (generated mesh)", path.display()))
+            .map_err(mesh::MeshLoadError::from)?;
+        Ok((mesh, warnings))
+    }
+
+    fn resolve_pins(
+        &self,
+        mesh: &Mesh,
+        invalid: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<Vec<u32>, SceneError> {
+        let count = mesh.vertex_count();
+        let mut pinned = Vec::new();
+        for &v in &self.pins.vertices {
+            require((v as usize) < count, || {
+                invalid(
+                    "pins.vertices",
+                    format!("vertex {v} does not exist (mesh has {count} vertices)"),
+                )
+            })?;
+            pinned.push(v);
+        }
+        for selector in &self.pins.select {
+            pinned.extend(select_vertices(mesh, *selector));
+        }
+        for (k, b) in self.pins.boxes.iter().enumerate() {
+            let (lo, hi) = (DVec3::from_array(b.min), DVec3::from_array(b.max));
+            let inside: Vec<u32> = (0..count as u32)
+                .filter(|&i| {
+                    let p = mesh.positions[i as usize];
+                    p.cmpge(lo).all() && p.cmple(hi).all()
+                })
+                .collect();
+            require(!inside.is_empty(), || {
+                invalid(&format!("pins.boxes[{k}]"), "contains no vertex".into())
+            })?;
+            pinned.extend(inside);
+        }
+        pinned.sort_unstable();
+        pinned.dedup();
+        Ok(pinned)
+    }
+}

@@ -1,0 +1,234 @@
+//! Scene parsing and building.
+
+use std::path::Path;
+
+use glam::DVec3;
+
+use super::*;
+use crate::collide::Shape;
+
+const CLOTH: &str = r#"
+[mesh]
+generator = "grid"
+resolution = [8, 8]
+
+[material]
+mass = { total = 0.5 }
+stiffness = 200.0
+damping = 0.01
+
+[pins]
+select = ["corners"]
+"#;
+
+fn build(text: &str) -> Result<Scene, SceneError> {
+    SceneFile::parse(text, "test.toml")?.build(Path::new("test.toml"), false)
+}
+
+#[test]
+fn minimal_scene_builds_with_auto_dt_below_the_bound() {
+    let scene = build(CLOTH).expect("builds");
+    assert_eq!(scene.model.pinned.iter().filter(|p| **p).count(), 4);
+    assert!(scene.material.dt < scene.max_stable_dt);
+    for corner in [0usize, 7, 56, 63] {
+        assert!(scene.model.pinned[corner]);
+    }
+}
+
+#[test]
+fn unknown_key_names_line_and_key() {
+    let text = CLOTH.replace("damping = 0.01", "dampnig = 0.01");
+    let message = build(&text).unwrap_err().to_string();
+    assert!(
+        message.contains("test.toml") && message.contains("line 9"),
+        "{message}"
+    );
+    assert!(message.contains("dampnig"), "{message}");
+}
+
+#[test]
+fn negative_stiffness_names_the_field() {
+    let text = CLOTH.replace("stiffness = 200.0", "stiffness = -1.0");
+    assert_eq!(
+        build(&text).unwrap_err().to_string(),
+        "test.toml: material.stiffness: must be a positive number, found -1"
+    );
+}
+
+#[test]
+fn unstable_dt_is_refused_unless_allowed() {
+    let text = format!("{CLOTH}\n[simulation]\ndt = 0.5\n");
+    let message = build(&text).unwrap_err().to_string();
+    assert!(message.contains("exceeds the stability limit"), "{message}");
+    let scene = SceneFile::parse(&text, "t")
+        .expect("parses")
+        .build(Path::new("t"), true)
+        .expect("allowed");
+    assert_eq!(scene.material.dt, 0.5);
+}
+
+#[test]
+fn dt_must_be_a_number_or_auto() {
+    let text = format!("{CLOTH}\n[simulation]\ndt = \"fast\"\n");
+    let message = build(&text).unwrap_err().to_string();
+    assert!(message.contains("auto"), "{message}");
+}
+
+#[test]
+fn two_mass_kinds_are_ambiguous() {
+    let text = CLOTH.replace("{ total = 0.5 }", "{ total = 0.5, per_vertex = 0.1 }");
+    let message = build(&text).unwrap_err().to_string();
+    assert!(message.contains("material.mass"), "{message}");
+}
+
+#[test]
+fn force_on_missing_vertex_names_the_entry() {
+    let text = format!("{CLOTH}\n[[force]]\nvertices = [64]\nforce = [0, 1, 0]\n");
+    assert_eq!(
+        build(&text).unwrap_err().to_string(),
+        "test.toml: force[0].vertices: vertex 64 does not exist (mesh has 64 vertices)"
+    );
+}
+
+#[test]
+fn pins_combine_indices_selectors_and_boxes() {
+    let text = CLOTH.replace(
+        "select = [\"corners\"]",
+        "select = [\"corners\"]\nvertices = [9]\nboxes = [{ min = [-0.6, -1, -0.6], max = [0.6, 1, -0.4] }]",
+    );
+    let scene = build(&text).expect("builds");
+    let pinned: Vec<usize> = (0..64).filter(|&i| scene.model.pinned[i]).collect();
+    // Corners 0, 7, 56, 63; vertex 9; the whole first row (z = -0.5) from the box.
+    assert_eq!(pinned, vec![0, 1, 2, 3, 4, 5, 6, 7, 9, 56, 63]);
+    let empty = CLOTH.replace(
+        "select = [\"corners\"]",
+        "boxes = [{ min = [5, 5, 5], max = [6, 6, 6] }]",
+    );
+    assert_eq!(
+        build(&empty).unwrap_err().to_string(),
+        "test.toml: pins.boxes[0]: contains no vertex"
+    );
+}
+
+#[test]
+fn dynamic_balls_and_self_collision_are_read_and_checked() {
+    let ball = "[[collider]]\nkind = \"sphere\"\ncenter = [0, 2, 0]\nradius = 0.2\nmass = 0.5\nforce = [1, 0, 0]\n";
+    let text = format!("{CLOTH}\n{ball}\n[self_collision]\ndistance = 0.01\ngrids = 3\n");
+    let scene = build(&text).expect("builds");
+    let dynamics = scene.model.collision.colliders[0]
+        .dynamics
+        .expect("dynamic");
+    assert_eq!((dynamics.mass, dynamics.restitution), (0.5, 0.3));
+    assert_eq!(dynamics.force, DVec3::X);
+    let config = scene
+        .model
+        .collision
+        .self_collision
+        .expect("self-collision");
+    assert_eq!((config.grids, config.window), (3, 4));
+    assert_eq!(config.cell_size, 0.02);
+    for (from, to, message) in [
+        (
+            "mass = 0.5",
+            "mass = 0",
+            "collider[0].mass: must be a positive number, found 0",
+        ),
+        (
+            "force = [1, 0, 0]",
+            "force = [1, 0, 0]\nrestitution = 2",
+            "collider[0].restitution: must be 0..=1, found 2",
+        ),
+        (
+            "grids = 3",
+            "grids = 0",
+            "self_collision.grids: must be 1..=16, found 0",
+        ),
+        (
+            "distance = 0.01",
+            "distance = -0.01",
+            "self_collision.distance: must be a positive number, found -0.01",
+        ),
+    ] {
+        let error = build(&text.replace(from, to)).unwrap_err().to_string();
+        assert!(error.contains(message), "{error}");
+    }
+    let unpushed = text.replace("mass = 0.5\n", "");
+    assert!(
+        build(&unpushed)
+            .unwrap_err()
+            .to_string()
+            .contains("collider[0].force: applies only to a ball with a mass")
+    );
+    let capsule = format!(
+        "{CLOTH}\n[[collider]]\nkind = \"capsule\"\nstart = [0, 0, 0]\nend = [1, 0, 0]\nradius = 0.1\n"
+    );
+    assert!(matches!(
+        build(&capsule).expect("builds").model.collision.colliders[0].shape,
+        Shape::Capsule { radius, .. } if radius == 0.1
+    ));
+    let error = build(&capsule.replace("end = [1, 0, 0]\n", ""))
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("collider[0].end"), "{error}");
+    let off = text.replace("grids = 3", "grids = 3\nenabled = false");
+    assert!(
+        build(&off)
+            .expect("builds")
+            .model
+            .collision
+            .self_collision
+            .is_none()
+    );
+    // A keyframed path: the sphere starts at the first keyframe.
+    let path = format!(
+        "{CLOTH}\n[[collider]]\nkind = \"sphere\"\nradius = 0.1\npath = [[0, 1, 2, 3], [1, 1, 2, 4]]\nrepeat = true\n"
+    );
+    let scene = build(&path).expect("builds");
+    let collider = scene.model.collision.colliders[0];
+    assert!(collider.path.is_some_and(|p| p.repeat));
+    assert_eq!(collider.anchor(), DVec3::new(1.0, 2.0, 3.0));
+    let backwards = path.replace("[1, 1, 2, 4]", "[0, 1, 2, 4]");
+    let error = build(&backwards).unwrap_err().to_string();
+    assert!(
+        error.contains("collider[0].path: needs 2 to 8 keyframes"),
+        "{error}"
+    );
+    let both = path.replace("repeat = true", "velocity = [1, 0, 0]");
+    let error = build(&both).unwrap_err().to_string();
+    assert!(
+        error.contains("collider[0].velocity: a collider with a path"),
+        "{error}"
+    );
+}
+
+#[test]
+fn colliders_are_read_and_checked() {
+    let text = format!(
+        "{CLOTH}\n[collision]\nthickness = 0.01\n[[collider]]\nkind = \"sphere\"\ncenter = [0, -0.5, 0]\nradius = 0.3\nfriction = 0.2\n[[collider]]\nkind = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 2, 0]\n"
+    );
+    let scene = build(&text).expect("builds");
+    assert_eq!(scene.model.collision.colliders.len(), 2);
+    assert_eq!(scene.model.collision.thickness, 0.01);
+    assert!(
+        matches!(scene.model.collision.colliders[1].shape, Shape::Plane { normal, .. } if normal == DVec3::Y)
+    );
+    let bad = text.replace("radius = 0.3", "radius = -1");
+    assert_eq!(
+        build(&bad).unwrap_err().to_string(),
+        "test.toml: collider[0].radius: must be a positive number, found -1"
+    );
+    let missing = text.replace("normal = [0, 2, 0]\n", "");
+    assert!(
+        build(&missing)
+            .unwrap_err()
+            .to_string()
+            .contains("collider[1].normal")
+    );
+}
+
+#[test]
+fn benchmark_scene_round_trips_through_toml() {
+    let scene = SceneFile::benchmark(MeshSection::unit_grid(16, 16), 256);
+    let parsed = SceneFile::parse(&scene.to_toml(), "bench").expect("parses");
+    assert_eq!(parsed, scene);
+}

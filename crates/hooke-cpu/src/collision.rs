@@ -1,0 +1,113 @@
+//! The collision phase of the CPU step: colliders (the rule of `hooke_core::collide`), dynamic
+//! balls, and self-collision (`hooke_core::selfcollide`).
+
+use glam::{DVec3, Vec3};
+use hooke_core::{collide, selfcollide};
+use rayon::prelude::*;
+
+use crate::CpuSolver;
+use crate::layout::LANES;
+
+impl CpuSolver {
+    /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
+    /// mesh order so every solver sorts the same keys the same way.
+    pub(crate) fn self_collide(&mut self) {
+        let Some(config) = self.self_collision else {
+            return;
+        };
+        let internal = &self.numbering.internal;
+        let mut positions: Vec<Vec3> = internal
+            .iter()
+            .map(|&k| Vec3::from_array(self.next.get(k as usize)))
+            .collect();
+        let moves = selfcollide::resolve(
+            &mut positions,
+            &self.inverse_masses,
+            &self.model.adjacency,
+            &config,
+        );
+        // Only moved vertices are written back; each move shifts the step's motion too.
+        for (v, c) in moves {
+            let k = internal[v as usize] as usize;
+            self.next
+                .set(k, (Vec3::from_array(self.next.get(k)) + c).to_array());
+            self.delta
+                .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
+        }
+    }
+
+    /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in
+    /// parallel over vertex chunks, before the new positions become current; then advances
+    /// dynamic balls by the momentum the cloth took from them. Returns the first ball that
+    /// became non-finite.
+    pub(crate) fn collide(&mut self) -> Option<usize> {
+        if self.colliders.is_empty() {
+            return None;
+        }
+        let (colliders, thickness) = (&self.colliders, self.model.collision.thickness);
+        // Colliders are placed where they are at the end of the step being finished.
+        let (dt, t) = (
+            self.material.dt,
+            (self.steps_taken + 1) as f64 * self.material.dt,
+        );
+        let (current, scales) = (&self.current, &self.integrator.scales);
+        let (real, count) = (self.model.vertex_count(), colliders.len());
+        let (masses, original) = (&self.model.masses, &self.numbering.original);
+        let [nx, ny, nz] = self.next.axes_mut();
+        let [dx, dy, dz] = self.delta.axes_mut();
+        let free = scales.axis(0);
+        let [cx, cy, cz] = current.axes();
+        // Per slice and collider: sum of m c over the slice's vertices (kg m).
+        self.slice_pushes.clear();
+        self.slice_pushes.resize(free.len() * count, DVec3::ZERO);
+        nx.par_iter_mut()
+            .zip(ny.par_iter_mut())
+            .zip(nz.par_iter_mut())
+            .zip(
+                dx.par_iter_mut()
+                    .zip(dy.par_iter_mut())
+                    .zip(dz.par_iter_mut()),
+            )
+            .zip(self.slice_pushes.par_chunks_mut(count))
+            .enumerate()
+            .for_each(|(slice, ((((nx, ny), nz), ((dx, dy), dz)), pushes))| {
+                for lane in 0..LANES {
+                    let k = slice * LANES + lane;
+                    if k >= real || free[slice][lane] <= 0.0 {
+                        continue;
+                    }
+                    let x = DVec3::new(
+                        cx[slice][lane].into(),
+                        cy[slice][lane].into(),
+                        cz[slice][lane].into(),
+                    );
+                    let next = DVec3::new(nx[lane].into(), ny[lane].into(), nz[lane].into());
+                    let mass = masses[original[k] as usize];
+                    let p = collide::resolve_and_report(
+                        colliders,
+                        thickness,
+                        t,
+                        dt,
+                        x,
+                        next,
+                        |c, moved| pushes[c] += moved * mass,
+                    )
+                    .as_vec3();
+                    (nx[lane], ny[lane], nz[lane]) = (p.x, p.y, p.z);
+                    let d = p - x.as_vec3();
+                    (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);
+                }
+            });
+        if collide::any_dynamic(&self.colliders) {
+            // Summed in slice order: the same result for any thread count.
+            let mut pushes = vec![DVec3::ZERO; count];
+            for chunk in self.slice_pushes.chunks(count) {
+                for (total, push) in pushes.iter_mut().zip(chunk) {
+                    *total += *push;
+                }
+            }
+            collide::advance_balls(&mut self.colliders, &pushes, self.material.gravity, dt, t);
+        }
+        collide::first_non_finite_ball(&self.colliders)
+    }
+}

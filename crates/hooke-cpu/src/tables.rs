@@ -1,0 +1,177 @@
+//! The force tables of the two methods, built once from the model: gather's sliced-ELL
+//! adjacency, scatter's spring table and incidence table (see [`crate::kernels`]).
+
+use hooke_core::Model;
+
+use crate::kernels::{B_END, GatherTable, IncidenceTable, IndexRows, Soa, SpringTable, Stiffness};
+use crate::layout::{LANES, Numbering, Slices};
+use crate::{Method, Topology};
+
+pub(crate) fn into_blocks<T: Copy + Default>(values: Vec<T>) -> Vec<[T; LANES]> {
+    values
+        .chunks(LANES)
+        .map(|c| std::array::from_fn(|lane| c.get(lane).copied().unwrap_or_default()))
+        .collect()
+}
+
+/// The force tables of `method` with every stiffness times `stiffness_scale`.
+pub(crate) fn build_topology(
+    model: &Model,
+    numbering: &Numbering,
+    method: Method,
+    stiffness_scale: f64,
+) -> Topology {
+    let scaled;
+    let model = if stiffness_scale == 1.0 {
+        model
+    } else {
+        scaled = model.with_stiffness_scale(stiffness_scale);
+        &scaled
+    };
+    match method {
+        Method::Gather => Topology::Gather(gather_table(model, numbering)),
+        Method::Scatter => {
+            let (springs, incidence) = scatter_tables(model, numbering);
+            let spring_forces = Soa::zeros(springs.a.len() + 1);
+            Topology::Scatter {
+                springs,
+                incidence,
+                spring_forces,
+            }
+        }
+    }
+}
+
+fn stiffness_of(model: &Model, per_entry: impl FnOnce() -> Vec<f32>) -> Stiffness {
+    match model.stiffnesses.first() {
+        Some(&first) if model.stiffnesses.iter().all(|k| *k == first) => {
+            Stiffness::uniform(first as f32)
+        }
+        _ => Stiffness::per_entry(into_blocks(per_entry())),
+    }
+}
+
+pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
+    let adjacency = &model.adjacency;
+    let (slices, entries) = Slices::build(
+        model,
+        numbering,
+        |_, e| {
+            let spring = adjacency.springs[e] as usize;
+            let neighbor = numbering.internal[adjacency.neighbors[e] as usize];
+            (
+                neighbor,
+                model.rest_lengths[spring] as f32,
+                model.stiffnesses[spring] as f32,
+            )
+        },
+        |k| (k as u32, 0.0, 0.0),
+    );
+    GatherTable {
+        slices,
+        neighbor: IndexRows::new(
+            into_blocks(entries.iter().map(|e| e.0).collect()),
+            u32::MAX,
+            numbering.padded_len,
+        ),
+        rest_length: into_blocks(entries.iter().map(|e| e.1).collect()),
+        stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
+    }
+}
+
+/// The order the scatter force pass visits springs in. Structured meshes have a handful of
+/// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
+/// ends of 8 consecutive springs consecutive vertices, so a row loads with vector loads. Other
+/// meshes are ordered by first end, which keeps position reads nearly sequential.
+fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
+    const MAX_CLASSES: usize = 16;
+    let offset = |s: u32| i64::from(ends[s as usize][1]) - i64::from(ends[s as usize][0]);
+    let mut counts = std::collections::HashMap::<i64, usize>::new();
+    for s in 0..ends.len() as u32 {
+        *counts.entry(offset(s)).or_default() += 1;
+    }
+    let mut common: Vec<(usize, i64)> = counts.iter().map(|(o, c)| (*c, *o)).collect();
+    common.sort_unstable_by(|a, b| b.cmp(a));
+    common.truncate(MAX_CLASSES);
+    let covered: usize = common.iter().map(|(c, _)| c).sum();
+    let mut order: Vec<u32> = (0..ends.len() as u32).collect();
+    if covered * 10 >= ends.len() * 9 {
+        let class: std::collections::HashMap<i64, usize> = common
+            .iter()
+            .enumerate()
+            .map(|(rank, (_, o))| (*o, rank))
+            .collect();
+        let key = |s: u32| {
+            let [a, b] = ends[s as usize];
+            (class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES), a, b)
+        };
+        order.sort_by_cached_key(|&s| key(s));
+    } else {
+        order.sort_by_key(|&s| {
+            let [a, b] = ends[s as usize];
+            (a.min(b), a.max(b))
+        });
+    }
+    order
+}
+
+pub(crate) fn scatter_tables(
+    model: &Model,
+    numbering: &Numbering,
+) -> (SpringTable, IncidenceTable) {
+    let ends: Vec<[u32; 2]> = model
+        .spring_ends
+        .iter()
+        .map(|e| {
+            let [a, b] = e.map(|v| numbering.internal[v as usize]);
+            [a.min(b), a.max(b)]
+        })
+        .collect();
+    // `slot_of[s]` is model spring s's place in the force pass and force buffer.
+    let order = spring_order(&ends);
+    let mut slot_of = vec![0u32; model.spring_count()];
+    for (slot, &s) in order.iter().enumerate() {
+        slot_of[s as usize] = slot as u32;
+    }
+    let rows = model.spring_count().div_ceil(LANES);
+    let zero_slot = (rows * LANES) as u32;
+    let end_rows = |end: usize| {
+        IndexRows::new(
+            into_blocks(order.iter().map(|&s| ends[s as usize][end]).collect()),
+            u32::MAX,
+            numbering.padded_len,
+        )
+    };
+    let springs = SpringTable {
+        a: end_rows(0),
+        b: end_rows(1),
+        rest_length: into_blocks(
+            order
+                .iter()
+                .map(|&s| model.rest_lengths[s as usize] as f32)
+                .collect(),
+        ),
+        stiffness: stiffness_of(model, || {
+            order
+                .iter()
+                .map(|&s| model.stiffnesses[s as usize] as f32)
+                .collect()
+        }),
+    };
+    let adjacency = &model.adjacency;
+    let (slices, entries) = Slices::build(
+        model,
+        numbering,
+        |k, e| {
+            let spring = adjacency.springs[e] as usize;
+            let is_b_end = ends[spring][1] as usize == k;
+            slot_of[spring] | if is_b_end { B_END } else { 0 }
+        },
+        |_| zero_slot,
+    );
+    let incidence = IncidenceTable {
+        slices,
+        entry: IndexRows::new(into_blocks(entries), !B_END, zero_slot as usize + LANES),
+    };
+    (springs, incidence)
+}

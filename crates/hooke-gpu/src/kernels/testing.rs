@@ -1,0 +1,181 @@
+//! Helpers for the kernels' own tests: a device, a small model stretched off its rest shape,
+//! read-backs, and the reference's float64 spring forces to compare with.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::DVec3;
+use hooke_core::diagnostics::spring_force_on_a;
+use hooke_core::scene::{MeshSection, Scene, SceneFile};
+use hooke_core::{Model, State};
+
+use crate::context::{GpuContext, gpu_required};
+use crate::gpu::{read_back, zeroed};
+use crate::kernels::ScatterBuffers;
+use crate::kernels::accumulate_fixed::AccumulateFixed;
+use crate::kernels::accumulate_incidence::AccumulateIncidence;
+use crate::kernels::force_springs::ForceSprings;
+use crate::methods::{Accumulation, GpuMethod};
+use crate::model::{GpuModel, vec4s};
+use crate::state::GpuState;
+
+/// The device, or `None` (a printed skip) when there is none and HOOKE_REQUIRE_GPU is unset.
+pub fn context() -> Option<Arc<GpuContext>> {
+    match GpuContext::new() {
+        Ok(context) => Some(context),
+        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
+        Err(error) => {
+            eprintln!("skipping kernel test: {error}");
+            None
+        }
+    }
+}
+
+/// A 12 x 12 irregular cloth (valences 3..10) and a state in which every vertex is moved off
+/// its rest place and moving, so every spring pulls or pushes.
+pub fn stretched_scene() -> (Scene, State) {
+    let scene = SceneFile::benchmark(MeshSection::unit_irregular(144, 4), 144)
+        .build(Path::new("kernel test"), true)
+        .expect("scene");
+    let shake = |v: usize, k: f64| {
+        let f = v as f64;
+        DVec3::new(
+            (f * 1.7 + k).sin(),
+            (f * 0.9 + k).cos(),
+            (f * 2.3 - k).sin(),
+        ) * 0.01
+    };
+    let positions: Vec<DVec3> = scene
+        .model
+        .initial_positions
+        .iter()
+        .enumerate()
+        .map(|(v, p)| *p + shake(v, 0.0))
+        .collect();
+    let previous_positions = positions
+        .iter()
+        .enumerate()
+        .map(|(v, p)| *p - 0.1 * shake(v, 1.0))
+        .collect();
+    (
+        scene,
+        State {
+            positions,
+            previous_positions,
+        },
+    )
+}
+
+/// `count` `vec4` values of `buffer`, as float64 xyz.
+pub fn read_vec3s(context: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Vec<DVec3> {
+    let bytes = read_back(context, &[(buffer, 16 * count as u64)]).expect("read back");
+    let values: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
+    values
+        .iter()
+        .map(|v| DVec3::new(v[0].into(), v[1].into(), v[2].into()))
+        .collect()
+}
+
+/// Each vertex's sum of spring forces in float64: the reference solver's arithmetic.
+pub fn reference_spring_forces(model: &Model, positions: &[DVec3]) -> Vec<DVec3> {
+    let mut forces = vec![DVec3::ZERO; model.vertex_count()];
+    for (s, [a, b]) in model.spring_ends.iter().enumerate() {
+        let (a, b) = (*a as usize, *b as usize);
+        let force = spring_force_on_a(
+            positions[a],
+            positions[b],
+            model.rest_lengths[s],
+            model.stiffnesses[s],
+        );
+        forces[a] += force;
+        forces[b] -= force;
+    }
+    forces
+}
+
+/// Asserts every vector is within `tolerance` times the largest expected one.
+pub fn assert_close(actual: &[DVec3], expected: &[DVec3], tolerance: f64, what: &str) {
+    let scale = expected.iter().map(|f| f.length()).fold(0.0, f64::max);
+    assert!(scale > 0.0, "{what}: nothing to compare");
+    for (v, (a, e)) in actual.iter().zip(expected).enumerate() {
+        assert!(
+            a.distance(*e) <= tolerance * scale,
+            "{what}: vertex {v}: {a} vs {e} (scale {scale:e})"
+        );
+    }
+}
+
+/// Records `record` into one encoder, submits it and waits.
+pub fn run(context: &GpuContext, record: impl FnOnce(&mut wgpu::CommandEncoder)) {
+    let mut encoder = context
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("kernel test"),
+        });
+    record(&mut encoder);
+    context.queue.submit([encoder.finish()]);
+}
+
+/// `state` as the GPU holds it: float32 positions and deltas, back in float64.
+pub fn as_gpu_sees(state: &State) -> State {
+    let positions: Vec<DVec3> = state
+        .positions
+        .iter()
+        .map(|p| p.as_vec3().as_dvec3())
+        .collect();
+    let previous_positions = state
+        .positions
+        .iter()
+        .zip(&state.previous_positions)
+        .zip(&positions)
+        .map(|((p, q), rounded)| *rounded - (*p - *q).as_vec3().as_dvec3())
+        .collect();
+    State {
+        positions,
+        previous_positions,
+    }
+}
+
+/// Spring forces, then `accumulation`, from a stretched state; the per-vertex sums.
+pub fn accumulated(accumulation: Accumulation) -> Option<(Vec<DVec3>, Vec<DVec3>)> {
+    let context = context()?;
+    let (scene, state) = stretched_scene();
+    let n = scene.model.vertex_count();
+    let method = GpuMethod::Scatter(accumulation);
+    let model = GpuModel::new(&context, &scene.model, &scene.material, method).expect("model");
+    let gpu_state = GpuState::new(&context, n);
+    gpu_state.write(&context, &state);
+    model.write_uniforms(&context);
+    let forces = zeroed(&context, "forces", vec4s(n), wgpu::BufferUsages::COPY_SRC);
+    let springs = ForceSprings::new(&context, &model, &gpu_state).expect("springs");
+    let buffers = ScatterBuffers {
+        uniforms: &model.uniform_buffer,
+        springs: model.springs().expect("spring records"),
+        spring_forces: &springs.spring_forces,
+        forces: &forces,
+        status: &gpu_state.status,
+        vertex_count: n as u32,
+        spring_count: scene.model.spring_count() as u32,
+    };
+    let current = gpu_state.current;
+    match accumulation {
+        Accumulation::Incidence => {
+            let sum = AccumulateIncidence::new(&context, &scene.model, &buffers).expect("kernel");
+            run(&context, |e| {
+                springs.kernel.encode(e, current, None);
+                sum.kernel.encode(e, current, None);
+            });
+        }
+        Accumulation::AtomicFixed => {
+            let sum = AccumulateFixed::new(&context, &buffers).expect("kernel");
+            run(&context, |e| {
+                springs.kernel.encode(e, current, None);
+                sum.encode_accumulate(e, None);
+                sum.encode_resolve(e, None);
+            });
+        }
+        other => panic!("{} is not tested here", other.name()),
+    }
+    let expected = reference_spring_forces(&scene.model, &as_gpu_sees(&state).positions);
+    Some((read_vec3s(&context, &forces, n), expected))
+}

@@ -1,0 +1,297 @@
+//! [`GpuModel`]: the model's buffers on the GPU (what stays fixed while stepping, and the
+//! material's constants, rewritten in place when the material changes).
+
+use hooke_core::{Material, Model};
+
+use crate::context::{GpuContext, GpuError};
+use crate::gpu::{self, storage, zeroed};
+use crate::layout::{GatherEntry, GpuSpring, StepUniforms};
+use crate::methods::{Accumulation, GpuMethod};
+
+/// Texels per row of the blend force target.
+pub(crate) const BLEND_WIDTH: u32 = 2048;
+
+/// Bytes of `count` `vec4` values.
+pub(crate) fn vec4s(count: usize) -> u64 {
+    count as u64 * 16
+}
+
+pub(crate) fn bytes_of<T>(data: &[T]) -> u64 {
+    std::mem::size_of_val(data) as u64
+}
+
+/// The springs as the force kernels read them, stiffness scaled by the material.
+#[derive(Debug)]
+pub enum GpuTopology {
+    /// Per vertex in valence-sorted order (the paper's layout): its springs in CSR rows.
+    Gather {
+        order: wgpu::Buffer,
+        offsets: wgpu::Buffer,
+        entries: wgpu::Buffer,
+    },
+    /// One record per spring.
+    Scatter { springs: wgpu::Buffer },
+}
+
+/// The model on the GPU: step uniforms, per-vertex integration constants, springs, and the
+/// triangle lists wind needs. Built once; [`GpuModel::set_material`] rewrites it in place.
+#[derive(Debug)]
+pub struct GpuModel {
+    /// The host model, its collision set-up included.
+    pub model: Model,
+    pub material: Material,
+    pub method: GpuMethod,
+    /// The host copy of the step uniforms; [`GpuModel::write_uniforms`] sends it.
+    pub uniforms: StepUniforms,
+    pub uniform_buffer: wgpu::Buffer,
+    /// Per vertex `(dt^2 / m, 1 - c dt / m, 0, 0)`, zero for pinned vertices.
+    pub scales: wgpu::Buffer,
+    pub topology: GpuTopology,
+    /// Triangles as `vec4<u32>` (for wind).
+    pub triangles: wgpu::Buffer,
+    /// `vertex_count + 1` offsets, then each vertex's triangles (for wind, in a fixed order).
+    pub vertex_triangles: wgpu::Buffer,
+    /// Bytes of the topology buffers.
+    pub topology_bytes: u64,
+    /// Bytes of the triangle lists.
+    pub triangle_bytes: u64,
+}
+
+impl GpuModel {
+    pub fn new(
+        context: &GpuContext,
+        model: &Model,
+        material: &Material,
+        method: GpuMethod,
+    ) -> Result<Self, GpuError> {
+        let n = model.vertex_count();
+        gpu::check_binding_size(context, "positions", vec4s(n))?;
+        gpu::check_binding_size(context, "spring forces", vec4s(model.spring_count()))?;
+        let uniform_buffer = context.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("step uniforms"),
+            size: std::mem::size_of::<StepUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let scales = zeroed(
+            context,
+            "integration scales",
+            vec4s(n),
+            wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        );
+        let none = wgpu::BufferUsages::empty();
+        let copy = wgpu::BufferUsages::COPY_DST;
+        let scale = material.stiffness_scale;
+        let (topology, topology_bytes) = match method {
+            GpuMethod::Gather => {
+                let order = valence_sorted_order(model);
+                let mut offsets = Vec::with_capacity(n + 1);
+                offsets.push(0u32);
+                for &v in &order {
+                    offsets.push(offsets[offsets.len() - 1] + model.adjacency.valence(v as usize));
+                }
+                let entries = gather_entries(model, &order, scale);
+                gpu::check_binding_size(context, "gather adjacency", bytes_of(&entries))?;
+                let bytes = bytes_of(&order) + bytes_of(&offsets) + bytes_of(&entries);
+                let topology = GpuTopology::Gather {
+                    order: storage(context, "gather order", &order, none),
+                    offsets: storage(context, "gather offsets", &offsets, none),
+                    entries: storage(context, "gather entries", &entries, copy),
+                };
+                (topology, bytes)
+            }
+            GpuMethod::Scatter(_) => {
+                let springs = spring_records(model, scale);
+                gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
+                let bytes = bytes_of(&springs);
+                let springs = storage(context, "springs", &springs, copy);
+                (GpuTopology::Scatter { springs }, bytes)
+            }
+        };
+        let triangles: Vec<[u32; 4]> = model
+            .triangles
+            .iter()
+            .map(|t| [t[0], t[1], t[2], 0])
+            .collect();
+        let lists = gpu::vertex_triangle_lists(n, &model.triangles);
+        let mut gpu_model = Self {
+            uniforms: StepUniforms {
+                vertex_count: n as u32,
+                spring_count: model.spring_count() as u32,
+                collider_count: model.collision.colliders.len() as u32,
+                dynamic_count: model
+                    .collision
+                    .colliders
+                    .iter()
+                    .filter(|c| c.dynamics.is_some())
+                    .count() as u32,
+                collision_thickness: model.collision.thickness as f32,
+                ..Default::default()
+            },
+            triangles: storage(context, "wind triangles", &triangles, none),
+            vertex_triangles: storage(context, "vertex triangles", &lists, none),
+            triangle_bytes: bytes_of(&triangles) + bytes_of(&lists),
+            model: model.clone(),
+            material: *material,
+            method,
+            uniform_buffer,
+            scales,
+            topology,
+            topology_bytes,
+        };
+        gpu_model.set_accumulation_scales();
+        gpu_model.write_scales(context);
+        Ok(gpu_model)
+    }
+
+    /// Takes a new material: integration constants, gravity and `1/dt` rewritten in place, and
+    /// on a stiffness change the spring records and accumulation scales. Creates nothing.
+    pub fn set_material(&mut self, context: &GpuContext, material: &Material) {
+        let stiffness_changed = material.stiffness_scale != self.material.stiffness_scale;
+        self.material = *material;
+        self.write_scales(context);
+        if stiffness_changed {
+            let scale = material.stiffness_scale;
+            match &self.topology {
+                GpuTopology::Gather { entries, .. } => {
+                    let order = valence_sorted_order(&self.model);
+                    let records = gather_entries(&self.model, &order, scale);
+                    context
+                        .queue
+                        .write_buffer(entries, 0, bytemuck::cast_slice(&records));
+                }
+                GpuTopology::Scatter { springs } => {
+                    let records = spring_records(&self.model, scale);
+                    context
+                        .queue
+                        .write_buffer(springs, 0, bytemuck::cast_slice(&records));
+                }
+            }
+            self.set_accumulation_scales();
+        }
+        self.write_uniforms(context);
+    }
+
+    /// Sends the host copy of the step uniforms.
+    pub fn write_uniforms(&self, context: &GpuContext) {
+        context
+            .queue
+            .write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniforms));
+    }
+
+    /// Per-vertex `(dt^2/m, 1 - c dt/m)` and the uniforms that depend on dt (not yet sent).
+    fn write_scales(&mut self, context: &GpuContext) {
+        let Material {
+            dt,
+            damping,
+            gravity,
+            ..
+        } = self.material;
+        let scales: Vec<[f32; 4]> = self
+            .model
+            .masses
+            .iter()
+            .zip(&self.model.pinned)
+            .map(|(m, pinned)| {
+                if *pinned {
+                    [0.0; 4]
+                } else {
+                    [
+                        (dt * dt / m) as f32,
+                        (1.0 - damping * dt / m) as f32,
+                        0.0,
+                        0.0,
+                    ]
+                }
+            })
+            .collect();
+        context
+            .queue
+            .write_buffer(&self.scales, 0, bytemuck::cast_slice(&scales));
+        let g = (gravity * dt * dt).as_vec3();
+        self.uniforms.gravity_step = [g.x, g.y, g.z, 0.0];
+        self.uniforms.inverse_dt = (1.0 / dt) as f32;
+    }
+
+    /// The scales of fixed-point and blend accumulation for the current stiffness.
+    fn set_accumulation_scales(&mut self) {
+        let model = &self.model;
+        let range = force_range(model, self.material.stiffness_scale);
+        let max_valence = (0..model.vertex_count())
+            .map(|v| model.adjacency.valence(v))
+            .max()
+            .unwrap_or(0);
+        // A vertex sums at most max_valence contributions, each within the limit: no wrap.
+        let limit = (2f64.powi(31) / f64::from(max_valence + 1)).floor() - 256.0;
+        self.uniforms.fixed_limit = limit as f32;
+        self.uniforms.fixed_scale = (limit / range) as f32;
+        let n = model.vertex_count() as u32;
+        self.uniforms.blend_width = BLEND_WIDTH.min(n.max(1));
+        self.uniforms.blend_height = n.div_ceil(self.uniforms.blend_width).max(1);
+        // Float targets: a power of two near the range (exact rescaling). 8-bit targets: the
+        // range times the valence, so a vertex's sum of either sign stays below 1.
+        self.uniforms.blend_scale = match self.method {
+            GpuMethod::Scatter(Accumulation::BlendRgba8) => {
+                (range * f64::from(max_valence.max(1))) as f32
+            }
+            _ => 2f64.powi(range.log2().round() as i32) as f32,
+        };
+    }
+
+    /// The springs buffer of the scatter method.
+    pub fn springs(&self) -> Option<&wgpu::Buffer> {
+        match &self.topology {
+            GpuTopology::Scatter { springs } => Some(springs),
+            GpuTopology::Gather { .. } => None,
+        }
+    }
+}
+
+/// A spring stretched to twice its rest length: the force scale fixed-point and 8-bit
+/// accumulation are sized for (`max D l0`). Larger forces are clamped (fixed point: and
+/// reported) or saturate (8-bit blending, as in the paper).
+fn force_range(model: &Model, stiffness_scale: f64) -> f64 {
+    (0..model.spring_count())
+        .map(|s| model.stiffness(s, stiffness_scale) * model.rest_lengths[s])
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE)
+}
+
+/// Valence-sorted processing order (the paper's layout): slot -> vertex.
+fn valence_sorted_order(model: &Model) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..model.vertex_count() as u32).collect();
+    order.sort_by_key(|&v| std::cmp::Reverse(model.adjacency.valence(v as usize)));
+    order
+}
+
+/// The gather adjacency rows of the vertices in `order`.
+fn gather_entries(model: &Model, order: &[u32], stiffness_scale: f64) -> Vec<GatherEntry> {
+    let adjacency = &model.adjacency;
+    let mut entries = Vec::with_capacity(adjacency.neighbors.len());
+    for &v in order {
+        for k in adjacency.range(v as usize) {
+            let spring = adjacency.springs[k] as usize;
+            entries.push(GatherEntry {
+                neighbor: adjacency.neighbors[k],
+                rest_length: model.rest_lengths[spring] as f32,
+                stiffness: model.stiffness(spring, stiffness_scale) as f32,
+            });
+        }
+    }
+    entries
+}
+
+/// One record per spring for the scatter kernels.
+fn spring_records(model: &Model, stiffness_scale: f64) -> Vec<GpuSpring> {
+    model
+        .spring_ends
+        .iter()
+        .enumerate()
+        .map(|(s, [a, b])| GpuSpring {
+            a: *a,
+            b: *b,
+            rest_length: model.rest_lengths[s] as f32,
+            stiffness: model.stiffness(s, stiffness_scale) as f32,
+        })
+        .collect()
+}
