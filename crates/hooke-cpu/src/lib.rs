@@ -90,7 +90,7 @@ pub enum CpuError {
 
 /// Bytes the solver holds, by role (the paper's Table 1 from the real allocations).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct MemoryUse {
+pub struct CpuMemory {
     /// Current and previous positions.
     pub positions: usize,
     /// Adjacency (gather) or springs plus incidence (scatter).
@@ -99,7 +99,7 @@ pub struct MemoryUse {
     pub per_step: usize,
 }
 
-impl MemoryUse {
+impl CpuMemory {
     pub fn total(&self) -> usize {
         self.positions + self.topology + self.per_step
     }
@@ -208,7 +208,7 @@ impl CpuSolver {
         self.pool.current_num_threads()
     }
 
-    pub fn memory(&self) -> MemoryUse {
+    pub fn memory(&self) -> CpuMemory {
         let positions = self.current.bytes() + self.next.bytes() + self.delta.bytes();
         let integration = 2 * self.numbering.slice_count() * std::mem::size_of::<Block>();
         let external = self
@@ -237,7 +237,7 @@ impl CpuSolver {
                 spring_forces.bytes(),
             ),
         };
-        MemoryUse {
+        CpuMemory {
             positions,
             topology,
             per_step: forces + integration + external,

@@ -30,7 +30,9 @@ pub struct StepUniforms {
     pub collision_thickness: f32,
     /// Dynamic balls among the colliders (0: no reactions are recorded).
     pub dynamic_count: u32,
-    pub pad: [u32; 3],
+    /// The material's stiffness scale: every spring's stiffness is its record's times this.
+    pub stiffness_scale: f32,
+    pub pad: [u32; 2],
 }
 
 /// One collider (`Collider` in WGSL): a sphere, plane or capsule, scripted or a dynamic ball.
@@ -166,6 +168,7 @@ mod tests {
             offset_of!(StepUniforms, collider_count),
             offset_of!(StepUniforms, collision_thickness),
             offset_of!(StepUniforms, dynamic_count),
+            offset_of!(StepUniforms, stiffness_scale),
         ];
         assert_eq!(&offsets[..host.len()], host.map(|o| o as u32).as_slice());
 

@@ -20,7 +20,8 @@ pub(crate) fn bytes_of<T>(data: &[T]) -> u64 {
     std::mem::size_of_val(data) as u64
 }
 
-/// The springs as the force kernels read them, stiffness scaled by the material.
+/// The springs as the force kernels read them (the material's stiffness scale is a uniform, so
+/// these never change).
 #[derive(Debug)]
 pub enum GpuTopology {
     /// Per vertex in valence-sorted order (the paper's layout): its springs in CSR rows.
@@ -80,8 +81,6 @@ impl GpuModel {
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let none = wgpu::BufferUsages::empty();
-        let copy = wgpu::BufferUsages::COPY_DST;
-        let scale = material.stiffness_scale;
         let (topology, topology_bytes) = match method {
             GpuMethod::Gather => {
                 let order = valence_sorted_order(model);
@@ -90,21 +89,21 @@ impl GpuModel {
                 for &v in &order {
                     offsets.push(offsets[offsets.len() - 1] + model.adjacency.valence(v as usize));
                 }
-                let entries = gather_entries(model, &order, scale);
+                let entries = gather_entries(model, &order);
                 gpu::check_binding_size(context, "gather adjacency", bytes_of(&entries))?;
                 let bytes = bytes_of(&order) + bytes_of(&offsets) + bytes_of(&entries);
                 let topology = GpuTopology::Gather {
                     order: storage(context, "gather order", &order, none),
                     offsets: storage(context, "gather offsets", &offsets, none),
-                    entries: storage(context, "gather entries", &entries, copy),
+                    entries: storage(context, "gather entries", &entries, none),
                 };
                 (topology, bytes)
             }
             GpuMethod::Scatter(_) => {
-                let springs = spring_records(model, scale);
+                let springs = spring_records(model);
                 gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
                 let bytes = bytes_of(&springs);
-                let springs = storage(context, "springs", &springs, copy);
+                let springs = storage(context, "springs", &springs, none);
                 (GpuTopology::Scatter { springs }, bytes)
             }
         };
@@ -126,6 +125,7 @@ impl GpuModel {
                     .filter(|c| c.dynamics.is_some())
                     .count() as u32,
                 collision_thickness: model.collision.thickness as f32,
+                stiffness_scale: material.stiffness_scale as f32,
                 ..Default::default()
             },
             triangles: storage(context, "wind triangles", &triangles, none),
@@ -144,31 +144,13 @@ impl GpuModel {
         Ok(gpu_model)
     }
 
-    /// Takes a new material: integration constants, gravity and `1/dt` rewritten in place, and
-    /// on a stiffness change the spring records and accumulation scales. Creates nothing.
+    /// Takes a new material: integration constants, gravity, `1/dt` and the stiffness scale
+    /// (with the accumulation scales that follow it) rewritten in place. Creates nothing.
     pub fn set_material(&mut self, context: &GpuContext, material: &Material) {
-        let stiffness_changed = material.stiffness_scale != self.material.stiffness_scale;
         self.material = *material;
         self.write_scales(context);
-        if stiffness_changed {
-            let scale = material.stiffness_scale;
-            match &self.topology {
-                GpuTopology::Gather { entries, .. } => {
-                    let order = valence_sorted_order(&self.model);
-                    let records = gather_entries(&self.model, &order, scale);
-                    context
-                        .queue
-                        .write_buffer(entries, 0, bytemuck::cast_slice(&records));
-                }
-                GpuTopology::Scatter { springs } => {
-                    let records = spring_records(&self.model, scale);
-                    context
-                        .queue
-                        .write_buffer(springs, 0, bytemuck::cast_slice(&records));
-                }
-            }
-            self.set_accumulation_scales();
-        }
+        self.uniforms.stiffness_scale = material.stiffness_scale as f32;
+        self.set_accumulation_scales();
         self.write_uniforms(context);
     }
 
@@ -265,7 +247,7 @@ fn valence_sorted_order(model: &Model) -> Vec<u32> {
 }
 
 /// The gather adjacency rows of the vertices in `order`.
-fn gather_entries(model: &Model, order: &[u32], stiffness_scale: f64) -> Vec<GatherEntry> {
+fn gather_entries(model: &Model, order: &[u32]) -> Vec<GatherEntry> {
     let adjacency = &model.adjacency;
     let mut entries = Vec::with_capacity(adjacency.neighbors.len());
     for &v in order {
@@ -274,7 +256,7 @@ fn gather_entries(model: &Model, order: &[u32], stiffness_scale: f64) -> Vec<Gat
             entries.push(GatherEntry {
                 neighbor: adjacency.neighbors[k],
                 rest_length: model.rest_lengths[spring] as f32,
-                stiffness: model.stiffness(spring, stiffness_scale) as f32,
+                stiffness: model.stiffnesses[spring] as f32,
             });
         }
     }
@@ -282,7 +264,7 @@ fn gather_entries(model: &Model, order: &[u32], stiffness_scale: f64) -> Vec<Gat
 }
 
 /// One record per spring for the scatter kernels.
-fn spring_records(model: &Model, stiffness_scale: f64) -> Vec<GpuSpring> {
+fn spring_records(model: &Model) -> Vec<GpuSpring> {
     model
         .spring_ends
         .iter()
@@ -291,7 +273,7 @@ fn spring_records(model: &Model, stiffness_scale: f64) -> Vec<GpuSpring> {
             a: *a,
             b: *b,
             rest_length: model.rest_lengths[s] as f32,
-            stiffness: model.stiffness(s, stiffness_scale) as f32,
+            stiffness: model.stiffnesses[s] as f32,
         })
         .collect()
 }

@@ -14,7 +14,7 @@ use hooke_core::{
     Control, MassModel, Material, Model, ModelError, ModelOptions, PhaseTimes, SimError, Snapshot,
     Solver, State, StiffnessModel, TimingSource,
 };
-use hooke_cpu::{CpuError, CpuOptions, CpuSolver, MemoryUse};
+use hooke_cpu::{CpuError, CpuMemory, CpuOptions, CpuSolver};
 use hooke_gpu::wgpu;
 use hooke_gpu::{GpuContext, GpuError, GpuMemory, GpuMethod, GpuSolver, positions_to_vec4};
 
@@ -93,7 +93,7 @@ pub fn model_from_arrays(arrays: &Arrays<'_>) -> Result<Model, EngineError> {
 pub enum MemoryReport {
     /// The reference keeps f64 state and a force buffer; not a figure worth comparing.
     Reference,
-    Cpu(MemoryUse),
+    Cpu(CpuMemory),
     Gpu(GpuMemory),
 }
 

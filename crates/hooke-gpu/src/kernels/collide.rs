@@ -264,3 +264,99 @@ fn keyframe_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+    use hooke_core::Collision;
+    use hooke_core::collide::{Collider, Shape, resolve};
+
+    use super::*;
+    use crate::kernels::testing::{as_gpu_sees, context, read_vec3s, run, stretched_scene};
+    use crate::methods::GpuMethod;
+    use crate::state::positions_to_vec4;
+
+    /// float32 projections (a square root, a division, friction) against float64 from the same
+    /// float32 positions: a few ulps of 1 m.
+    const TOLERANCE_M: f64 = 1e-5;
+
+    #[test]
+    fn collide_moves_vertices_out_of_spheres_capsules_and_planes_as_hooke_core_does() {
+        let Some(context) = context() else { return };
+        let (mut scene, state) = stretched_scene();
+        // The sheet lies in the x-z plane around the origin; it moves down 2 cm this step into
+        // a sphere, a capsule and the ground, each with friction.
+        scene.model.collision = Collision {
+            colliders: vec![
+                Collider::fixed(
+                    Shape::Sphere {
+                        center: DVec3::new(0.0, 0.05, 0.0),
+                        radius: 0.3,
+                    },
+                    0.3,
+                ),
+                Collider::fixed(
+                    Shape::Capsule {
+                        start: DVec3::new(-0.5, 0.02, 0.3),
+                        end: DVec3::new(0.5, 0.02, 0.3),
+                        radius: 0.05,
+                    },
+                    0.5,
+                ),
+                Collider::fixed(
+                    Shape::Plane {
+                        point: DVec3::new(0.0, -0.002, 0.0),
+                        normal: DVec3::Y,
+                    },
+                    0.6,
+                ),
+            ],
+            thickness: 0.01,
+            self_collision: None,
+        };
+        let n = scene.model.vertex_count();
+        let model = GpuModel::new(&context, &scene.model, &scene.material, GpuMethod::Gather)
+            .expect("model");
+        model.write_uniforms(&context);
+        let gpu_state = GpuState::new(&context, n);
+        gpu_state.write(&context, &state);
+        let current = gpu_state.current;
+        let seen = as_gpu_sees(&state);
+        let moved: Vec<DVec3> = seen
+            .positions
+            .iter()
+            .map(|p| (*p + DVec3::new(0.0, -0.02, 0.0)).as_vec3().as_dvec3())
+            .collect();
+        context.queue.write_buffer(
+            &gpu_state.positions[1 - current],
+            0,
+            bytemuck::cast_slice(&positions_to_vec4(&moved)),
+        );
+        let collide = Collide::new(&context, &model, &gpu_state)
+            .expect("kernel")
+            .expect("the model has colliders");
+        run(&context, |e| collide.encode(e, current, None, None));
+        let actual = read_vec3s(&context, &gpu_state.positions[1 - current], n);
+        // The step ends at t = dt (the status counter starts at 0).
+        let dt = scene.material.dt;
+        let colliders = &scene.model.collision.colliders;
+        let mut pushed = 0;
+        for v in 0..n {
+            let expected = if scene.model.pinned[v] {
+                moved[v]
+            } else {
+                resolve(colliders, 0.01, dt, dt, seen.positions[v], moved[v])
+            };
+            pushed += usize::from(expected.distance(moved[v]) > 1e-4);
+            assert!(
+                actual[v].distance(expected) < TOLERANCE_M,
+                "vertex {v}: {} vs {expected}",
+                actual[v]
+            );
+        }
+        assert!(
+            pushed > n / 2,
+            "only {pushed} of {n} vertices met a collider"
+        );
+    }
+}

@@ -24,7 +24,8 @@ struct StepUniforms {
     collision_thickness: f32,
     // Dynamic balls among the colliders (0: no reactions are recorded).
     dynamic_count: u32,
-    pad0: u32,
+    // Every spring's stiffness is its record's times this (the material's stiffness scale).
+    stiffness_scale: f32,
     pad1: u32,
     pad2: u32,
 }

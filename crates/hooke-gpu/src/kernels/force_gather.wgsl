@@ -28,7 +28,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     var force = vec3<f32>(0.0);
     for (var k = offsets[slot]; k < offsets[slot + 1u]; k++) {
         let e = entries[k];
-        force += spring_force(x, positions[e.neighbor].xyz, e.stiffness, e.rest_length);
+        force += spring_force(x, positions[e.neighbor].xyz, e.stiffness * u.stiffness_scale, e.rest_length);
     }
     forces[vertex] = vec4<f32>(force, 0.0);
 }

@@ -13,6 +13,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         return;
     }
     let spring = springs[s];
-    let force = spring_force(positions[spring.a].xyz, positions[spring.b].xyz, spring.stiffness, spring.rest_length);
+    let force = spring_force(positions[spring.a].xyz, positions[spring.b].xyz, spring.stiffness * u.stiffness_scale, spring.rest_length);
     spring_forces[s] = vec4<f32>(force, 0.0);
 }

@@ -177,3 +177,66 @@ impl SelfCollidePass {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::{DVec3, Vec3};
+    use hooke_core::State;
+    use hooke_core::diagnostics::relative_l2;
+
+    use super::*;
+    use crate::kernels::testing::{context, read_vec3s, run, stretched_scene};
+    use crate::methods::GpuMethod;
+
+    /// The same float32 pushes in the same sorted order; the push weights are `dt^2/m` here and
+    /// `1/m` there, whose ratios round differently in the last bit.
+    const TOLERANCE: f64 = 1e-6;
+
+    #[test]
+    fn self_collision_pass_parts_close_pairs_as_hooke_core_does() {
+        let Some(context) = context() else { return };
+        let (scene, _) = stretched_scene();
+        let config = SelfCollision::for_model(&scene.model);
+        // The sheet folded along x = 0: its x > 0 half lies a quarter of the distance above the
+        // other, so many unjoined pairs are too close.
+        let folded: Vec<DVec3> = scene
+            .model
+            .initial_positions
+            .iter()
+            .map(|p| {
+                if p.x > 0.0 {
+                    DVec3::new(-p.x, p.y + 0.25 * config.distance, p.z)
+                } else {
+                    *p
+                }
+            })
+            .map(|p| p.as_vec3().as_dvec3())
+            .collect();
+        let n = folded.len();
+        let model = GpuModel::new(&context, &scene.model, &scene.material, GpuMethod::Gather)
+            .expect("model");
+        model.write_uniforms(&context);
+        let mut gpu_state = GpuState::new(&context, n);
+        // The pass works on the buffer a step writes: put the folded sheet in both.
+        let at_rest = State::at_rest(folded.clone());
+        gpu_state.write(&context, &at_rest);
+        gpu_state.advance();
+        gpu_state.write(&context, &at_rest);
+        gpu_state.advance();
+        let pass = SelfCollidePass::new(&context, &model, &gpu_state, &config).expect("pass");
+        run(&context, |e| pass.encode(e, gpu_state.current, None));
+        let actual = read_vec3s(&context, &gpu_state.positions[1 - gpu_state.current], n);
+        let mut expected: Vec<Vec3> = folded.iter().map(|p| p.as_vec3()).collect();
+        let weights = selfcollide::inverse_masses(&scene.model);
+        selfcollide::resolve(&mut expected, &weights, &scene.model.adjacency, &config);
+        let expected: Vec<DVec3> = expected.iter().map(|p| p.as_dvec3()).collect();
+        let pushed = expected
+            .iter()
+            .zip(&folded)
+            .filter(|(a, b)| a.distance(**b) > 1e-5)
+            .count();
+        assert!(pushed > 20, "only {pushed} vertices pushed apart");
+        let error = relative_l2(&actual, &expected);
+        assert!(error < TOLERANCE, "relative L2 {error:.2e}");
+    }
+}
