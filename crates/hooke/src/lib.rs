@@ -40,6 +40,7 @@
 
 mod offscreen;
 mod simulation;
+pub mod state_file;
 
 pub use hooke_core::{Control, Material, Snapshot};
 pub use offscreen::{FrameError, OffscreenRun};

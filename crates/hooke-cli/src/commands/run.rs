@@ -6,10 +6,11 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::Args;
 use hooke::Simulation;
+use hooke::state_file::{load_state, save_state};
 use hooke_core::State;
 use hooke_core::collide::Shape;
 use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
-use hooke_core::mesh::{write_ply_frame, write_ply_state};
+use hooke_core::mesh::write_ply_frame;
 use hooke_core::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -38,6 +39,11 @@ pub struct RunArgs {
     /// Run even if dt exceeds the stability bound.
     #[arg(long)]
     pub allow_unstable: bool,
+    /// Continue from a state a run saved (its `final-state.ply`, with `final-state.toml`
+    /// beside it): positions, velocities, the step counter and the dynamic balls; then run
+    /// `--steps` more steps.
+    #[arg(long)]
+    pub resume: Option<PathBuf>,
 }
 
 /// Steps between checks for an exploding simulation (non-finite values are caught every step).
@@ -49,7 +55,10 @@ struct Summary {
     solver: String,
     vertices: usize,
     springs: usize,
+    /// Steps run by this invocation.
     steps: u64,
+    /// The step the run started from (0, or the resumed state's).
+    first_step: u64,
     dt: f64,
     simulated_seconds: f64,
     solver_seconds: f64,
@@ -86,6 +95,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         .with_context(|| format!("creating output directory {}", output.display()))?;
 
     let mut solver = args.solver.build(&scene)?;
+    if let Some(path) = &args.resume {
+        let snapshot = load_state(path, &scene.model, scene.material.dt)
+            .with_context(|| format!("resuming from {}", path.display()))?;
+        solver.restore(&snapshot)?;
+        eprintln!("resumed from step {}", snapshot.steps_taken);
+    }
+    let first_step = solver.steps_taken();
     eprintln!(
         "{}: {} vertices, {} springs, dt {:.3e} s (stable up to {:.3e} s), {} steps on {}",
         scene.name,
@@ -108,7 +124,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         Ok(())
     };
-    write_frame(&solver.state()?, 0, &mut frames_written)?;
+    write_frame(&solver.state()?, first_step, &mut frames_written)?;
 
     let mut solver_time = Duration::ZERO;
     let mut step = 0u64;
@@ -128,20 +144,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         check_health(&scene.model, &state.positions, solver.steps_taken())
             .map_err(|error| stopped(error, &output, frames_written))?;
         if step.is_multiple_of(frame_every) || step == steps {
-            write_frame(&state, step, &mut frames_written)?;
+            write_frame(&state, first_step + step, &mut frames_written)?;
         }
     }
     progress.finish_and_clear();
 
-    let state = solver.state()?;
+    let snapshot = solver.snapshot()?;
+    let state = snapshot.state.clone();
     let final_path = output.join("final-state.ply");
-    write_ply_state(
-        &final_path,
-        &state.positions,
-        &state.previous_positions,
-        &scene.model.triangles,
-    )
-    .with_context(|| format!("writing {}", final_path.display()))?;
+    save_state(&final_path, &snapshot, &scene.model, scene.material.dt)
+        .with_context(|| format!("writing {}", final_path.display()))?;
     let summary = summarize(
         &scene,
         &solver,
@@ -195,6 +207,7 @@ fn summarize(
         vertices: scene.model.vertex_count(),
         springs: scene.model.spring_count(),
         steps,
+        first_step: solver.steps_taken() - steps,
         dt: scene.material.dt,
         simulated_seconds: steps as f64 * scene.material.dt,
         solver_seconds: seconds,
@@ -259,7 +272,7 @@ fn print_summary(s: &Summary, e: &Energy) {
         );
     }
     println!(
-        "output       {} ({} frames, final-state.ply, summary.json)",
+        "output       {} ({} frames, final-state.ply and .toml, summary.json)",
         s.output.display(),
         s.frames_written
     );

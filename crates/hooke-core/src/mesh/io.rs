@@ -148,16 +148,26 @@ fn locate_obj_error(path: &Path, error: tobj::LoadError) -> Option<usize> {
     None
 }
 
-fn load_ply(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
+/// A PLY file's contents, and an error maker that names the file.
+fn parse_ply(
+    path: &Path,
+    name: &str,
+) -> Result<(Ply<DefaultElement>, impl Fn(String) -> MeshLoadError), MeshLoadError> {
     let mut reader = BufReader::new(File::open(path).map_err(io_error(name))?);
-    let parse_error = |message: String| MeshLoadError::Parse {
-        path: name.to_owned(),
+    let owned = name.to_owned();
+    let parse_error = move |message: String| MeshLoadError::Parse {
+        path: owned.clone(),
         line: None,
         message,
     };
     let ply = Parser::<DefaultElement>::new()
         .read_ply(&mut reader)
         .map_err(|e| parse_error(e.to_string()))?;
+    Ok((ply, parse_error))
+}
+
+fn load_ply(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
+    let (ply, parse_error) = parse_ply(path, name)?;
 
     let vertices = ply
         .payload
@@ -229,6 +239,42 @@ fn list_as_indices(property: &Property) -> Option<Vec<u32>> {
         Property::ListUInt(v) => convert(v),
         _ => None,
     }
+}
+
+/// Reads a state written by [`write_ply_state`]: per vertex `x y z prev_x prev_y prev_z`.
+pub fn read_ply_state(path: &Path) -> Result<crate::State, MeshLoadError> {
+    let name = path.display().to_string();
+    let (ply, parse_error) = parse_ply(path, &name)?;
+    let vertices = ply
+        .payload
+        .get("vertex")
+        .ok_or_else(|| parse_error("no 'vertex' element".into()))?;
+    let mut state = crate::State {
+        positions: Vec::with_capacity(vertices.len()),
+        previous_positions: Vec::with_capacity(vertices.len()),
+    };
+    for (index, vertex) in vertices.iter().enumerate() {
+        let read = |names: [&str; 3]| -> Result<DVec3, MeshLoadError> {
+            let mut value = [0.0; 3];
+            for (v, name) in value.iter_mut().zip(names) {
+                *v = vertex
+                    .get(name)
+                    .and_then(scalar_as_f64)
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| {
+                        parse_error(format!(
+                            "vertex {index} has no finite '{name}' property (a hooke state file has x y z prev_x prev_y prev_z)"
+                        ))
+                    })?;
+            }
+            Ok(DVec3::from_array(value))
+        };
+        state.positions.push(read(["x", "y", "z"])?);
+        state
+            .previous_positions
+            .push(read(["prev_x", "prev_y", "prev_z"])?);
+    }
+    Ok(state)
 }
 
 /// Writes one simulation frame (float32 positions + faces) as binary PLY, atomically.

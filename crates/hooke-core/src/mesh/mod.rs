@@ -7,7 +7,7 @@ mod generate;
 mod io;
 
 pub use generate::{GridPlane, grid, irregular};
-pub use io::{MeshLoadError, load_mesh, write_ply_frame, write_ply_state};
+pub use io::{MeshLoadError, load_mesh, read_ply_state, write_ply_frame, write_ply_state};
 
 use glam::DVec3;
 
