@@ -67,16 +67,47 @@ enum Output {
     Video(std::process::Child, PathBuf),
 }
 
+/// Steps between frames and the number of frames: the flags, or the scene's `frame_every` and
+/// `steps` (one frame at the start, then one every `frame_every` steps). Values the render loop
+/// cannot count (more than `u32::MAX` of either) are refused with the field named.
+fn frame_plan(
+    steps: u64,
+    frame_every: u64,
+    steps_per_frame: Option<u32>,
+    frames: Option<u32>,
+) -> anyhow::Result<(u32, u32)> {
+    let steps_per_frame = match steps_per_frame {
+        Some(n) => n.max(1),
+        None => u32::try_from(frame_every.max(1)).map_err(|_| {
+            anyhow::anyhow!(
+                "simulation.frame_every = {frame_every} is more steps between frames than hooke render takes ({}); give --steps-per-frame",
+                u32::MAX
+            )
+        })?,
+    };
+    let frames = match frames {
+        Some(n) => n.max(1),
+        None => (steps / u64::from(steps_per_frame))
+            .checked_add(1)
+            .and_then(|n| u32::try_from(n).ok())
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "simulation.steps = {steps} makes more frames than hooke render writes ({}); give --frames",
+                    u32::MAX
+                )
+            })?,
+    };
+    Ok((steps_per_frame, frames))
+}
+
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let scene = load_scene(&args.scene, args.allow_unstable)?;
-    let steps_per_frame = args
-        .steps_per_frame
-        .unwrap_or(scene.frame_every as u32)
-        .max(1);
-    let frames = args
-        .frames
-        .unwrap_or((scene.steps / u64::from(steps_per_frame)) as u32 + 1)
-        .max(1);
+    let (steps_per_frame, frames) = frame_plan(
+        scene.steps,
+        scene.frame_every,
+        args.steps_per_frame,
+        args.frames,
+    )?;
     let method = match args.method {
         MethodArg::Gather => GpuMethod::Gather,
         MethodArg::Scatter => GpuMethod::Scatter(args.accumulation.into()),
@@ -198,4 +229,26 @@ fn finish_output(output: Output) -> anyhow::Result<String> {
             format!("video written to {}", path.display())
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_plan;
+
+    #[test]
+    fn frame_plan_counts_frames_and_refuses_what_it_cannot_count() {
+        assert_eq!(frame_plan(1000, 100, None, None).expect("plan"), (100, 11));
+        assert_eq!(
+            frame_plan(1000, 100, Some(10), Some(3)).expect("plan"),
+            (10, 3)
+        );
+        assert_eq!(frame_plan(0, 0, None, None).expect("plan"), (1, 1));
+        let error = frame_plan(10, u64::MAX, None, None).expect_err("too far apart");
+        assert!(
+            error.to_string().contains("simulation.frame_every"),
+            "{error}"
+        );
+        let error = frame_plan(u64::MAX, 1, None, None).expect_err("too many frames");
+        assert!(error.to_string().contains("simulation.steps"), "{error}");
+    }
 }

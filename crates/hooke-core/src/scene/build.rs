@@ -12,6 +12,14 @@ use crate::mesh::{self, Mesh, MeshWarning};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
 use crate::{MassModel, Material, Model, ModelOptions, StiffnessModel};
 
+/// Generated sheets are 1 micrometre to 1000 km a side: beyond that, float32 positions cannot
+/// tell neighbouring vertices apart and the generators' spacing arithmetic overflows.
+const MIN_SIDE: f64 = 1e-6;
+const MAX_SIDE: f64 = 1e6;
+/// The longest side over the shortest: a thinner strip would need more than a million times
+/// more cells along its length than across it in the irregular generator's sampling grid.
+const MAX_ASPECT: f64 = 1e4;
+
 impl SceneFile {
     /// Checks every value, builds the mesh and model, and settles the time step.
     ///
@@ -147,17 +155,39 @@ impl SceneFile {
         invalid: &dyn Fn(&str, String) -> SceneError,
     ) -> Result<(Mesh, Vec<MeshWarning>), SceneError> {
         let section = &self.mesh;
+        require(section.center.iter().all(|c| c.is_finite()), || {
+            invalid(
+                "mesh.center",
+                format!("must be finite, found {:?}", section.center),
+            )
+        })?;
         let center = DVec3::from_array(section.center);
         if section.generator != MeshGenerator::File {
             require(
-                section.size.iter().all(|s| *s > 0.0 && s.is_finite()),
+                section
+                    .size
+                    .iter()
+                    .all(|s| (MIN_SIDE..=MAX_SIDE).contains(s)),
                 || {
                     invalid(
                         "mesh.size",
-                        format!("both sides must be positive, found {:?}", section.size),
+                        format!(
+                            "both sides must be {MIN_SIDE:e}..={MAX_SIDE:e} m, found {:?}",
+                            section.size
+                        ),
                     )
                 },
             )?;
+            let [a, b] = section.size;
+            require(a.max(b) <= MAX_ASPECT * a.min(b), || {
+                invalid(
+                    "mesh.size",
+                    format!(
+                        "one side may be at most {MAX_ASPECT:e} times the other, found {:?}",
+                        section.size
+                    ),
+                )
+            })?;
         }
         let mesh = match section.generator {
             MeshGenerator::Grid => {

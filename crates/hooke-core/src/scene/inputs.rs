@@ -91,6 +91,37 @@ impl SceneFile {
                     format!("must be 0..=1, found {}", c.friction),
                 )
             })?;
+            // A key of another kind of collider is a mistake, not something to ignore.
+            let foreign: &[(&str, bool)] = match c.kind {
+                ColliderKind::Sphere => &[
+                    ("point", c.point.is_some()),
+                    ("normal", c.normal.is_some()),
+                    ("start", c.start.is_some()),
+                    ("end", c.end.is_some()),
+                ],
+                ColliderKind::Capsule => &[
+                    ("center", c.center.is_some()),
+                    ("point", c.point.is_some()),
+                    ("normal", c.normal.is_some()),
+                ],
+                ColliderKind::Plane => &[
+                    ("center", c.center.is_some()),
+                    ("radius", c.radius.is_some()),
+                    ("start", c.start.is_some()),
+                    ("end", c.end.is_some()),
+                ],
+            };
+            for (name, set) in foreign {
+                require(!set, || {
+                    invalid(
+                        &field(name),
+                        format!(
+                            "does not apply to a {} collider",
+                            format!("{:?}", c.kind).to_lowercase()
+                        ),
+                    )
+                })?;
+            }
             // A scripted path starts where its first keyframe is.
             let start = c
                 .path

@@ -232,3 +232,49 @@ fn benchmark_scene_round_trips_through_toml() {
     let parsed = SceneFile::parse(&scene.to_toml(), "bench").expect("parses");
     assert_eq!(parsed, scene);
 }
+
+#[test]
+fn keys_of_another_collider_kind_are_reported_not_ignored() {
+    let sphere = format!(
+        "{CLOTH}\n[[collider]]\nkind = \"sphere\"\ncenter = [0, -0.5, 0]\nradius = 0.3\nnormal = [0, 1, 0]\n"
+    );
+    assert_eq!(
+        build(&sphere).unwrap_err().to_string(),
+        "test.toml: collider[0].normal: does not apply to a sphere collider"
+    );
+    let plane = format!(
+        "{CLOTH}\n[[collider]]\nkind = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 1, 0]\nradius = 2\n"
+    );
+    assert_eq!(
+        build(&plane).unwrap_err().to_string(),
+        "test.toml: collider[0].radius: does not apply to a plane collider"
+    );
+    let capsule = format!(
+        "{CLOTH}\n[[collider]]\nkind = \"capsule\"\nstart = [0, -1, 0]\nend = [1, -1, 0]\nradius = 0.1\ncenter = [0, 0, 0]\n"
+    );
+    assert_eq!(
+        build(&capsule).unwrap_err().to_string(),
+        "test.toml: collider[0].center: does not apply to a capsule collider"
+    );
+}
+
+#[test]
+fn a_non_finite_centre_or_an_absurd_size_is_refused_naming_the_field() {
+    // For a file mesh too (the check comes before the file is read).
+    let file = "[mesh]\ngenerator = \"file\"\npath = \"cloth.obj\"\ncenter = [nan, 0, 0]\n\n[material]\nmass = { total = 1.0 }\nstiffness = 10.0\n";
+    let error = build(file).unwrap_err().to_string();
+    assert!(error.contains("mesh.center: must be finite"), "{error}");
+    for size in ["[1e200, 1e200]", "[1e9, 1e-9]", "[1.0, 1e-7]", "[1e5, 1.0]"] {
+        for generator in [
+            "generator = \"grid\"\nresolution = [8, 8]",
+            "generator = \"irregular\"\nvertices = 100",
+        ] {
+            let text = CLOTH.replace(
+                "generator = \"grid\"\nresolution = [8, 8]",
+                &format!("{generator}\nsize = {size}"),
+            );
+            let error = build(&text).unwrap_err().to_string();
+            assert!(error.contains("mesh.size"), "{size}: {error}");
+        }
+    }
+}
