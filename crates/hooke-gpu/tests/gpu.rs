@@ -52,8 +52,12 @@ fn methods(context: &Arc<GpuContext>, scene: &Scene) -> Vec<GpuSolver> {
         .into_iter()
         .filter_map(|method| match gpu_solver(context, scene, method) {
             Ok(solver) => Some(solver),
-            Err(GpuError::Unsupported { .. }) => {
-                eprintln!("{}: unsupported on {}", method.name(), context.info.name);
+            Err(GpuError::Unsupported { feature, .. }) => {
+                eprintln!(
+                    "{}: skipped, {} lacks {feature}",
+                    method.name(),
+                    context.info.name
+                );
                 None
             }
             Err(error) => panic!("{}: {error}", method.name()),
