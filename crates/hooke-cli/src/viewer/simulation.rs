@@ -226,15 +226,22 @@ impl LiveSimulation {
         }
     }
 
-    /// The material the controls describe; `max_stable_dt` follows its stiffness and damping.
+    /// The material the controls describe; `max_stable_dt` follows its stiffness and damping
+    /// (recomputed only when they change: it visits every vertex, and a drag calls this on
+    /// every mouse move).
     fn material(&mut self) -> Material {
+        let running = *self.engine.material();
         let material = Material {
             damping: self.damping,
             gravity: DVec3::new(0.0, self.gravity_y, 0.0),
             stiffness_scale: self.stiffness_scale,
-            ..*self.engine.material()
+            ..running
         };
-        self.max_stable_dt = self.engine.stability_limit_under(&material).max_dt;
+        if (material.damping, material.stiffness_scale)
+            != (running.damping, running.stiffness_scale)
+        {
+            self.max_stable_dt = self.engine.stability_limit_under(&material).max_dt;
+        }
         Material {
             dt: self.dt(),
             ..material
