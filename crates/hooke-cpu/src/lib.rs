@@ -393,6 +393,19 @@ impl CpuSolver {
         }
     }
 
+    /// The external forces of the current control and dt, and the buffer they go into.
+    fn set_external_forces(&mut self) {
+        self.external = ExternalForces::new(
+            &self.model,
+            &self.numbering,
+            &self.control,
+            self.material.dt,
+        );
+        if self.external.is_some() && self.extra_forces.blocks() != self.numbering.slice_count() {
+            self.extra_forces = Soa::zeros(self.numbering.slice_count());
+        }
+    }
+
     /// The integration constants of the current material: `dt^2/m`, `1 - c dt/m` and `g dt^2`.
     fn set_integrator(&mut self) {
         let dt = self.material.dt;
@@ -539,27 +552,19 @@ impl Solver for CpuSolver {
         }
         self.material = *material;
         self.set_integrator();
-        self.external = ExternalForces::new(
-            &self.model,
-            &self.numbering,
-            &self.control,
-            self.material.dt,
-        );
+        // Wind reads a triangle's velocity as its deltas over dt.
+        self.set_external_forces();
         Ok(())
     }
 
     fn set_control(&mut self, control: &Control) -> Result<(), SimError> {
-        self.external =
-            ExternalForces::new(&self.model, &self.numbering, control, self.material.dt);
-        if self.external.is_some() && self.extra_forces.blocks() != self.numbering.slice_count() {
-            self.extra_forces = Soa::zeros(self.numbering.slice_count());
-        }
+        self.control = control.clone();
+        self.set_external_forces();
         collide::apply_pushes(
             &mut self.colliders,
             &self.model.collision.colliders,
             &control.ball_pushes,
         );
-        self.control = control.clone();
         Ok(())
     }
 

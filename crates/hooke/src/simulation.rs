@@ -104,6 +104,24 @@ enum Engine {
     Gpu(Box<GpuSolver>),
 }
 
+impl Engine {
+    fn solver(&self) -> &dyn Solver {
+        match self {
+            Engine::Reference(s) => s.as_ref(),
+            Engine::Cpu(s, _) => s.as_ref(),
+            Engine::Gpu(s) => s.as_ref(),
+        }
+    }
+
+    fn solver_mut(&mut self) -> &mut dyn Solver {
+        match self {
+            Engine::Reference(s) => s.as_mut(),
+            Engine::Cpu(s, _) => s.as_mut(),
+            Engine::Gpu(s) => s.as_mut(),
+        }
+    }
+}
+
 /// A model and the solver that advances it. Every front end (the CLI, the viewer, Python, the
 /// browser) drives hooke through this type.
 pub struct Simulation {
@@ -161,19 +179,11 @@ impl Simulation {
     }
 
     fn solver(&self) -> &dyn Solver {
-        match &self.engine {
-            Engine::Reference(s) => s.as_ref(),
-            Engine::Cpu(s, _) => s.as_ref(),
-            Engine::Gpu(s) => s.as_ref(),
-        }
+        self.engine.solver()
     }
 
     fn solver_mut(&mut self) -> &mut dyn Solver {
-        match &mut self.engine {
-            Engine::Reference(s) => s.as_mut(),
-            Engine::Cpu(s, _) => s.as_mut(),
-            Engine::Gpu(s) => s.as_mut(),
-        }
+        self.engine.solver_mut()
     }
 
     /// A short description such as `"cpu scatter (f32, 2 threads)"`.
@@ -281,11 +291,7 @@ impl Simulation {
             (_, gpu) => gpu.clone(),
         };
         let mut engine = build(&self.model, &self.material, choice, gpu.as_ref())?;
-        let solver: &mut dyn Solver = match &mut engine {
-            Engine::Reference(s) => s.as_mut(),
-            Engine::Cpu(s, _) => s.as_mut(),
-            Engine::Gpu(s) => s.as_mut(),
-        };
+        let solver = engine.solver_mut();
         solver.set_control(&self.control)?;
         solver.set_self_collision(self.self_collision)?;
         solver.restore(&snapshot)?;
