@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use hooke_core::mesh::load_mesh;
+use hooke_testkit::shipped_scene_path;
 
 fn hooke(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_hooke"))
@@ -494,7 +495,7 @@ fn viewer_runs_under_xvfb_shows_the_cloth_and_never_waits_for_the_gpu() {
     // The GPU solver (drawn from its own buffers) and the CPU one (uploaded each frame), each
     // with a scripted drag of the cloth and a stiffness, damping and dt change; and the Fig. 4
     // scene, whose dynamic balls are drawn from GPU memory too.
-    let fig4 = shipped_scene("wind-and-balls.toml");
+    let fig4 = shipped_scene_path("wind-and-balls.toml");
     for (scene, backend, scripted) in [
         (&scene, "gpu", true),
         (&scene, "cpu", true),
@@ -590,17 +591,11 @@ fn frame_loop_count(stderr: &str, what: &str) -> u64 {
         .unwrap_or_else(|_| panic!("'{number}' before '{what}' in {line} is not a count"))
 }
 
-fn shipped_scene(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scenes")
-        .join(name)
-}
-
 #[test]
 fn paper_fig3_and_fig4_scenes_run_and_render() {
     let dir = tempfile::tempdir().expect("tempdir");
     for name in ["self-collision.toml", "wind-and-balls.toml"] {
-        let scene = shipped_scene(name);
+        let scene = shipped_scene_path(name);
         let out = dir.path().join(name);
         let result = hooke(&[
             "run",

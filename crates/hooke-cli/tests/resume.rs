@@ -1,20 +1,16 @@
 //! `hooke run --resume`: a run continued from its saved state ends exactly where the
 //! uninterrupted run ends; a state that does not fit the scene is refused with the reason.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
+
+use hooke_testkit::shipped_scene_path;
 
 fn hooke(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_hooke"))
         .args(args)
         .output()
         .expect("hooke runs")
-}
-
-fn shipped_scene(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scenes")
-        .join(name)
 }
 
 fn path_str(path: &Path) -> &str {
@@ -46,7 +42,7 @@ fn a_resumed_run_ends_bit_identical_to_the_uninterrupted_one() {
     let dir = tempfile::tempdir().expect("tempdir");
     // Dynamic balls pushed by the cloth; and kinematic balls on straight and keyframed paths.
     for name in ["wind-and-balls.toml", "ball-through-curtain.toml"] {
-        let scene = shipped_scene(name);
+        let scene = shipped_scene_path(name);
         for method in ["gather", "scatter"] {
             let out = |label: &str| dir.path().join(format!("{name}-{method}-{label}"));
             let (whole, first, second) = (out("whole"), out("first"), out("second"));
@@ -76,14 +72,14 @@ fn a_resumed_run_ends_bit_identical_to_the_uninterrupted_one() {
 #[test]
 fn a_state_of_another_scene_or_time_step_is_refused_with_the_reason() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let balls = shipped_scene("wind-and-balls.toml");
+    let balls = shipped_scene_path("wind-and-balls.toml");
     let saved = dir.path().join("balls");
     run(&balls, "10", &saved, &[]);
     let state = saved.join("final-state.ply");
     // Another mesh.
     let other = hooke(&[
         "run",
-        path_str(&shipped_scene("cloth-pinned.toml")),
+        path_str(&shipped_scene_path("cloth-pinned.toml")),
         "--steps",
         "10",
         "--no-frames",

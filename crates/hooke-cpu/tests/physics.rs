@@ -14,6 +14,7 @@ use hooke_core::{
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
+use hooke_testkit::{reference, state_of};
 
 fn cpu_solver(
     model: &Model,
@@ -42,12 +43,6 @@ fn cpu(scene: &Scene, method: Method, threads: usize) -> CpuSolver {
     )
 }
 
-fn reference(scene: &Scene) -> ReferenceSolver {
-    let mut solver = ReferenceSolver::new(&scene.model, &scene.material);
-    solver.set_control(&scene.control).expect("control");
-    solver
-}
-
 /// Every solver under test, the reference first, driven by `control`.
 fn solvers_of(model: &Model, material: &Material, control: &Control) -> Vec<Box<dyn Solver>> {
     let mut reference = ReferenceSolver::new(model, material);
@@ -67,10 +62,6 @@ fn all_solvers(scene: &Scene) -> Vec<Box<dyn Solver>> {
 /// Every solver of a bare model under `material`, without control.
 fn model_solvers(model: &Model, material: Material) -> Vec<Box<dyn Solver>> {
     solvers_of(model, &material, &Control::default())
-}
-
-fn state_of(solver: &dyn Solver) -> State {
-    solver.read_state().expect("state reads back")
 }
 
 fn grid_section(columns: u32, rows: u32) -> MeshSection {

@@ -6,12 +6,12 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use hooke_core::diagnostics::relative_l2;
-use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{
-    Drag, MassModel, Model, ModelOptions, PointForce, SimError, Solver, State, StiffnessModel, Wind,
+    Drag, MassModel, Model, ModelOptions, PointForce, SimError, Solver, StiffnessModel, Wind,
 };
 use hooke_gpu::{Accumulation, GpuContext, GpuError, GpuMethod, GpuSolver, gpu_required};
+use hooke_testkit::{reference, state_of};
 
 fn context() -> Option<Arc<GpuContext>> {
     match GpuContext::new() {
@@ -33,17 +33,6 @@ fn gpu_solver(
     let mut solver = GpuSolver::new(Arc::clone(context), &scene.model, &scene.material, method)?;
     solver.set_control(&scene.control).expect("control");
     Ok(solver)
-}
-
-/// The reference solver of `scene`, driven by the scene's control.
-fn reference(scene: &Scene) -> ReferenceSolver {
-    let mut solver = ReferenceSolver::new(&scene.model, &scene.material);
-    solver.set_control(&scene.control).expect("control");
-    solver
-}
-
-fn state_of(solver: &dyn Solver) -> State {
-    solver.read_state().expect("state reads back")
 }
 
 /// Every method this adapter supports (atomic-f32 and blend-r32f need optional features).

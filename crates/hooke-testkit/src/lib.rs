@@ -4,8 +4,39 @@
 
 use std::path::{Path, PathBuf};
 
-use hooke_core::Solver;
+use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::{Scene, SceneFile};
+use hooke_core::{Solver, State};
+
+/// The folder of the scenes hooke ships (`scenes/` at the workspace root).
+pub fn shipped_scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes")
+}
+
+/// The shipped scene file `scenes/NAME`.
+pub fn shipped_scene_path(name: &str) -> PathBuf {
+    shipped_scenes_dir().join(name)
+}
+
+/// The shipped scene `scenes/NAME`, built as `hooke run` builds it.
+pub fn shipped_scene(name: &str) -> Scene {
+    let path = shipped_scene_path(name);
+    SceneFile::load(&path)
+        .and_then(|file| file.build(&path, false))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The float64 reference solver of `scene`, driven by the scene's control.
+pub fn reference(scene: &Scene) -> ReferenceSolver {
+    let mut solver = ReferenceSolver::new(&scene.model, &scene.material);
+    solver.set_control(&scene.control).expect("control");
+    solver
+}
+
+/// The solver's state (a read-back on the GPU).
+pub fn state_of(solver: &dyn Solver) -> State {
+    solver.read_state().expect("state reads back")
+}
 
 /// The folder of the fixture scenes.
 pub fn scenes_dir() -> PathBuf {
@@ -98,9 +129,7 @@ pub fn check_ball_dropped_on_sheet(solver: &mut dyn Solver, scene: &Scene) {
             );
         }
         slowed |= velocity.y > 0.5 * free_fall && t > 0.3;
-        let cloth_low = solver
-            .read_state()
-            .unwrap()
+        let cloth_low = state_of(solver)
             .positions
             .iter()
             .map(|p| p.y)
@@ -148,7 +177,7 @@ pub fn mean_pin_reaction(solver: &mut dyn Solver, scene: &Scene, steps: u32) -> 
     let mut total = glam::DVec3::ZERO;
     for _ in 0..steps {
         solver.step(1).expect("stable");
-        let positions = solver.read_state().unwrap().positions;
+        let positions = state_of(solver).positions;
         total += hooke_core::diagnostics::pin_reactions(&scene.model, &positions, &scene.material)
             .iter()
             .map(|(_, r)| *r)
@@ -192,7 +221,7 @@ pub fn check_cloth_stays_out(solver: &mut dyn Solver, scene: &Scene, tolerance: 
     let mut touched = false;
     for _ in 0..40 {
         solver.step(100).expect("stable");
-        for p in solver.read_state().unwrap().positions {
+        for p in state_of(solver).positions {
             for collider in &scene.model.collision.colliders {
                 let clearance = collider.shape.clearance(p);
                 assert!(
@@ -227,7 +256,7 @@ pub fn check_curtain_pushed(solver: &mut dyn Solver, scene: &Scene, tolerance: f
         solver.step(100).expect("stable");
         let t = solver.steps_taken() as f64 * scene.material.dt;
         let ball_now = ball.at(t).shape;
-        for p in solver.read_state().unwrap().positions {
+        for p in state_of(solver).positions {
             let clearance = ball_now.clearance(p);
             assert!(
                 clearance > thickness - tolerance,

@@ -1,15 +1,15 @@
 //! The engine API: live edits act in place exactly as a rebuilt solver would, snapshots
 //! continue a run bit for bit, and on the GPU a control or material change creates nothing.
 
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::DVec3;
 use hooke::{Control, Material, Simulation, SolverChoice};
-use hooke_core::scene::{Scene, SceneFile};
+use hooke_core::scene::Scene;
 use hooke_core::{BallPush, Drag, Wind};
 use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod, gpu_required};
+use hooke_testkit::shipped_scene;
 
 fn context() -> Option<Arc<GpuContext>> {
     match GpuContext::new() {
@@ -20,15 +20,6 @@ fn context() -> Option<Arc<GpuContext>> {
             None
         }
     }
-}
-
-fn shipped(name: &str) -> Scene {
-    let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scenes")
-        .join(name);
-    SceneFile::load(&path)
-        .and_then(|file| file.build(&path, false))
-        .unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The solvers whose results are deterministic, so equal inputs give bit-identical states.
@@ -98,7 +89,7 @@ fn other_material(material: &Material) -> Material {
 #[test]
 fn live_control_and_material_edits_equal_a_solver_built_with_them() {
     let context = context();
-    let scene = shipped("wind-and-balls.toml");
+    let scene = shipped_scene("wind-and-balls.toml");
     let control = busy_control(&scene);
     let material = other_material(&scene.material);
     for choice in deterministic_choices(context.is_some()) {
@@ -137,7 +128,7 @@ fn a_run_continued_from_a_snapshot_equals_the_uninterrupted_run() {
     let context = context();
     // Dynamic balls and wind; and a keyframed collider on a repeating path.
     for name in ["wind-and-balls.toml", "ball-through-curtain.toml"] {
-        let scene = shipped(name);
+        let scene = shipped_scene(name);
         for choice in deterministic_choices(context.is_some()) {
             let mut whole = Simulation::from_scene(&scene, choice, context.clone()).expect("ok");
             whole.step(200).expect("stable");
@@ -160,7 +151,7 @@ fn a_run_continued_from_a_snapshot_equals_the_uninterrupted_run() {
 #[test]
 fn gpu_control_material_and_solver_status_need_no_new_pipelines() {
     let Some(context) = context() else { return };
-    let scene = shipped("wind-and-balls.toml");
+    let scene = shipped_scene("wind-and-balls.toml");
     for method in [
         GpuMethod::Gather,
         GpuMethod::Scatter(Accumulation::Incidence),
@@ -205,7 +196,7 @@ fn gpu_control_material_and_solver_status_need_no_new_pipelines() {
 #[test]
 fn switching_solvers_carries_the_run_on() {
     let context = context();
-    let scene = shipped("wind-and-balls.toml");
+    let scene = shipped_scene("wind-and-balls.toml");
     let reference = SolverChoice::Reference;
     let mut switched = Simulation::from_scene(&scene, reference, context.clone()).expect("ok");
     switched.step(50).expect("stable");

@@ -16,15 +16,12 @@ use hooke::{Simulation, SolverChoice};
 use hooke_core::scene::SceneFile;
 use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod, gpu_required};
+use hooke_testkit::shipped_scenes_dir;
 use sha2::{Digest, Sha256};
 
 /// The adapter whose rounding the GPU hashes record: Mesa's lavapipe (llvmpipe on Vulkan).
 const RECORDED_ADAPTER: &str = "llvmpipe";
 const RECORDED_BACKEND: hooke_gpu::wgpu::Backend = hooke_gpu::wgpu::Backend::Vulkan;
-
-fn scenes_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes")
-}
 
 fn record_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/state-hashes.txt")
@@ -112,7 +109,7 @@ fn every_shipped_scene_ends_in_its_recorded_state_on_every_solver() {
             context.describe()
         );
     }
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(scenes_dir())
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(shipped_scenes_dir())
         .expect("scenes/ exists")
         .map(|e| e.expect("entry").path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
