@@ -112,10 +112,11 @@ pub fn load_state(ply: &Path, model: &Model, dt: f64) -> Result<Snapshot, StateF
         path: name.clone(),
         message,
     };
-    let text = std::fs::read_to_string(&path).map_err(|source| StateFileError::Io {
-        path: name.clone(),
-        source,
-    })?;
+    let text =
+        hooke_core::input_file::read_to_string(&path).map_err(|source| StateFileError::Io {
+            path: name.clone(),
+            source,
+        })?;
     let sidecar: Sidecar = toml::from_str(&text).map_err(|e| invalid(e.to_string()))?;
     let state = read_ply_state(ply)?;
     let n = model.vertex_count();

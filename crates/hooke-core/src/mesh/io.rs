@@ -3,15 +3,13 @@
 //! Writes go to a temporary file in the target directory that is renamed into place, so a reader
 //! (or a killed run) never sees a torn file.
 
-use std::fs::File;
-use std::io::BufReader;
 use std::path::Path;
 
 use glam::DVec3;
-use ply_rs_bw::parser::Parser;
+use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{
-    Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType,
-    ScalarType,
+    Addable, DefaultElement, ElementDef, Encoding, Header, Ply, Property, PropertyDef,
+    PropertyType, ScalarType,
 };
 use ply_rs_bw::writer::Writer;
 
@@ -37,19 +35,61 @@ pub enum MeshLoadError {
     Invalid(#[from] MeshError),
 }
 
-/// Loads and validates an `.obj` or `.ply` mesh. Polygons are split into triangle fans.
+/// A mesh file format hooke reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ (see [`super::obj`]).
+    Obj,
+    /// PLY, ASCII or binary.
+    Ply,
+}
+
+impl MeshFormat {
+    /// The format a file's extension names, if hooke reads it.
+    pub fn of_path(path: &Path) -> Option<Self> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("obj") => Some(Self::Obj),
+            Some("ply") => Some(Self::Ply),
+            _ => None,
+        }
+    }
+}
+
+/// Loads and validates an `.obj` or `.ply` mesh. Vertex `i` of the mesh is the file's vertex `i`
+/// (vertices no face uses are kept as free point masses, with a warning); polygons are split
+/// into triangle fans.
 pub fn load_mesh(path: &Path) -> Result<(Mesh, Vec<MeshWarning>), MeshLoadError> {
     let name = path.display().to_string();
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let mesh = match extension.as_deref() {
-        Some("obj") => load_obj(path, &name)?,
-        Some("ply") => load_ply(path, &name)?,
-        _ => return Err(MeshLoadError::UnsupportedFormat { path: name }),
+    let format =
+        MeshFormat::of_path(path).ok_or(MeshLoadError::UnsupportedFormat { path: name.clone() })?;
+    let bytes = crate::input_file::read(path).map_err(io_error(&name))?;
+    parse_mesh(&bytes, format, &name)
+}
+
+/// Parses and validates a mesh held in memory; `name` is what errors call it.
+pub fn parse_mesh(
+    bytes: &[u8],
+    format: MeshFormat,
+    name: &str,
+) -> Result<(Mesh, Vec<MeshWarning>), MeshLoadError> {
+    let mesh = match format {
+        MeshFormat::Obj => {
+            super::obj::parse_obj(&String::from_utf8_lossy(bytes)).map_err(|error| {
+                MeshLoadError::Parse {
+                    path: name.to_owned(),
+                    line: Some(error.line),
+                    message: error.message,
+                }
+            })?
+        }
+        MeshFormat::Ply => load_ply(bytes, name)?,
     };
-    let warnings = mesh.validate(&name)?;
+    let warnings = mesh.validate(name)?;
     Ok((mesh, warnings))
 }
 
@@ -60,114 +100,83 @@ fn io_error(path: &str) -> impl FnOnce(std::io::Error) -> MeshLoadError + '_ {
     }
 }
 
-fn fan_triangulate(polygon: &[u32], triangles: &mut Vec<[u32; 3]>) {
+pub(super) fn fan_triangulate(polygon: &[u32], triangles: &mut Vec<[u32; 3]>) {
     for k in 1..polygon.len().saturating_sub(1) {
         triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
     }
 }
 
-fn load_obj(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
-    // Open ourselves so a missing file is an io error with its OS message, not tobj's generic one.
-    let mut reader = BufReader::new(File::open(path).map_err(io_error(name))?);
-    let options = tobj::LoadOptions {
-        triangulate: false,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let (models, _materials) =
-        tobj::load_obj_buf(&mut reader, &options, |_| Ok(Default::default())).map_err(|error| {
-            MeshLoadError::Parse {
-                path: name.to_owned(),
-                line: locate_obj_error(path, error),
-                message: error.to_string(),
-            }
-        })?;
-
-    let mut mesh = Mesh::default();
-    for model in models {
-        let offset = mesh.positions.len() as u32;
-        mesh.positions.extend(
-            model
-                .mesh
-                .positions
-                .chunks_exact(3)
-                .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))),
-        );
-        let indices: Vec<u32> = model.mesh.indices.iter().map(|i| i + offset).collect();
-        if model.mesh.face_arities.is_empty() {
-            mesh.triangles
-                .extend(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
-        } else {
-            let mut start = 0usize;
-            for &arity in &model.mesh.face_arities {
-                let end = start + arity as usize;
-                fan_triangulate(&indices[start..end], &mut mesh.triangles);
-                start = end;
-            }
-        }
-    }
-    Ok(mesh)
-}
-
-/// tobj reports what went wrong but not where; find the first face line with a bad vertex
-/// reference so the user gets a line number. Only runs on the error path.
-fn locate_obj_error(path: &Path, error: tobj::LoadError) -> Option<usize> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let mut vertex_count = 0i64;
-    for (number, line) in text.lines().enumerate() {
-        let mut words = line.split_whitespace();
-        match words.next() {
-            Some("v") => {
-                vertex_count += 1;
-                if error == tobj::LoadError::PositionParseError
-                    && words.clone().take(3).any(|w| w.parse::<f64>().is_err())
-                {
-                    return Some(number + 1);
-                }
-            }
-            Some("f")
-                if error == tobj::LoadError::FaceVertexOutOfBounds
-                    || error == tobj::LoadError::FaceParseError =>
-            {
-                let bad =
-                    words.any(
-                        |w| match w.split('/').next().and_then(|i| i.parse::<i64>().ok()) {
-                            Some(i) if i > 0 => i > vertex_count,
-                            Some(i) if i < 0 => -i > vertex_count,
-                            _ => true,
-                        },
-                    );
-                if bad {
-                    return Some(number + 1);
-                }
-            }
-            _ => {}
-        }
-    }
-    None
-}
-
 /// A PLY file's contents, and an error maker that names the file.
 fn parse_ply(
-    path: &Path,
+    bytes: &[u8],
     name: &str,
 ) -> Result<(Ply<DefaultElement>, impl Fn(String) -> MeshLoadError), MeshLoadError> {
-    let mut reader = BufReader::new(File::open(path).map_err(io_error(name))?);
     let owned = name.to_owned();
     let parse_error = move |message: String| MeshLoadError::Parse {
         path: owned.clone(),
         line: None,
         message,
     };
-    let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut reader)
+    let parser = Parser::<DefaultElement>::new();
+    let mut reader = Reader::new(bytes);
+    let header = parser
+        .read_header(&mut reader)
         .map_err(|e| parse_error(e.to_string()))?;
+    check_element_counts(&header, reader.get_ref().len()).map_err(&parse_error)?;
+    let payload = parser
+        .read_payload(&mut reader, &header)
+        .map_err(|e| parse_error(e.to_string()))?;
+    let mut ply = Ply::new();
+    ply.header = header;
+    ply.payload = payload;
     Ok((ply, parse_error))
 }
 
-fn load_ply(path: &Path, name: &str) -> Result<Mesh, MeshLoadError> {
-    let (ply, parse_error) = parse_ply(path, name)?;
+/// Refuses a header whose element counts the rest of the file cannot hold. The parser makes one
+/// record per promised element before it finds the data missing, so `element face 91111111111`
+/// in a 1 kB file would exhaust memory (found by the fuzzer).
+fn check_element_counts(header: &Header, payload_bytes: usize) -> Result<(), String> {
+    let mut needed: u128 = 0;
+    for element in header.elements.values() {
+        if element.count > 0 && element.properties.is_empty() {
+            return Err(format!(
+                "element '{}' has {} entries but no properties",
+                element.name, element.count
+            ));
+        }
+        // The fewest bytes one entry takes: binary, each scalar's size and each list's count;
+        // ASCII, one character and one separator per value.
+        let entry: u128 = match header.encoding {
+            Encoding::Ascii => 2 * element.properties.len() as u128,
+            _ => element
+                .properties
+                .values()
+                .map(|p| match &p.data_type {
+                    PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
+                })
+                .sum(),
+        };
+        needed += entry * element.count as u128;
+    }
+    if needed > payload_bytes as u128 {
+        return Err(format!(
+            "the header promises at least {needed} bytes of data, the file holds {payload_bytes}"
+        ));
+    }
+    Ok(())
+}
+
+fn scalar_size(scalar: &ScalarType) -> u128 {
+    match scalar {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+fn load_ply(bytes: &[u8], name: &str) -> Result<Mesh, MeshLoadError> {
+    let (ply, parse_error) = parse_ply(bytes, name)?;
 
     let vertices = ply
         .payload
@@ -244,7 +253,8 @@ fn list_as_indices(property: &Property) -> Option<Vec<u32>> {
 /// Reads a state written by [`write_ply_state`]: per vertex `x y z prev_x prev_y prev_z`.
 pub fn read_ply_state(path: &Path) -> Result<crate::State, MeshLoadError> {
     let name = path.display().to_string();
-    let (ply, parse_error) = parse_ply(path, &name)?;
+    let bytes = crate::input_file::read(path).map_err(io_error(&name))?;
+    let (ply, parse_error) = parse_ply(&bytes, &name)?;
     let vertices = ply
         .payload
         .get("vertex")
@@ -449,6 +459,32 @@ mod tests {
         }
         let names: Vec<_> = std::fs::read_dir(dir.path()).expect("list").collect();
         assert_eq!(names.len(), 1, "no temporary file left behind");
+    }
+
+    #[test]
+    fn a_header_promising_more_than_the_file_holds_is_refused_before_reading() {
+        let header = |count: &str| {
+            format!(
+                "ply\nformat binary_little_endian 1.0\nelement vertex {count}\nproperty float x\n\
+                 property float y\nproperty float z\nelement face 0\n\
+                 property list uchar int vertex_indices\nend_header\n"
+            )
+        };
+        let mut bytes = header("4000000000").into_bytes();
+        bytes.extend_from_slice(&[0; 12]);
+        let message = parse_mesh(&bytes, MeshFormat::Ply, "big.ply")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("big.ply") && message.contains("promises at least 48000000000 bytes"),
+            "{message}"
+        );
+        // An element of no properties takes no bytes, so only its count could stop a reader.
+        let empty = "ply\nformat ascii 1.0\nelement fax 91111111111\nend_header\n";
+        let message = parse_mesh(empty.as_bytes(), MeshFormat::Ply, "fax.ply")
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("element 'fax'"), "{message}");
     }
 
     #[test]

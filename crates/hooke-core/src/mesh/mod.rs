@@ -5,9 +5,14 @@
 
 mod generate;
 mod io;
+mod obj;
 
 pub use generate::{GridPlane, grid, irregular};
-pub use io::{MeshLoadError, load_mesh, read_ply_state, write_ply_frame, write_ply_state};
+pub use io::{
+    MeshFormat, MeshLoadError, load_mesh, parse_mesh, read_ply_state, write_ply_frame,
+    write_ply_state,
+};
+pub use obj::ObjError;
 
 use glam::DVec3;
 

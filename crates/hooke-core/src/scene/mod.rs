@@ -75,7 +75,7 @@ pub struct Scene {
 impl SceneFile {
     /// Reads and parses a scene file (no range checks yet; see [`SceneFile::build`]).
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let text = crate::input_file::read_to_string(path).map_err(|source| SceneError::Io {
             path: path.display().to_string(),
             source,
         })?;
