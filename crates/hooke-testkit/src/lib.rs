@@ -38,6 +38,84 @@ pub fn state_of(solver: &dyn Solver) -> State {
     solver.read_state().expect("state reads back")
 }
 
+/// A deliberately broken solver: what an accuracy bar must tell apart from a working one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Broken {
+    /// Returns the initial state whatever it is asked.
+    NeverMoves,
+    /// Every spring's stiffness is 0: points fall and blow in the wind, unconnected.
+    SpringsOff,
+    /// Every spring 1% too stiff.
+    StiffnessOnePercentOff,
+    /// The damping term of eq. 2 left out.
+    DampingIgnored,
+}
+
+impl Broken {
+    pub const ALL: [Self; 4] = [
+        Self::NeverMoves,
+        Self::SpringsOff,
+        Self::StiffnessOnePercentOff,
+        Self::DampingIgnored,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::NeverMoves => "never moves",
+            Self::SpringsOff => "springs off",
+            Self::StiffnessOnePercentOff => "stiffness 1% off",
+            Self::DampingIgnored => "damping ignored",
+        }
+    }
+
+    /// The relative L2 error of this broken solver against `expected`, the reference's positions
+    /// after `steps` steps of `scene`. The broken variants run on the float64 reference, so the
+    /// score is the bug's alone.
+    pub fn score(self, scene: &Scene, steps: u32, expected: &[glam::DVec3]) -> f64 {
+        let mut broken = scene.clone();
+        match self {
+            Self::NeverMoves => {
+                return hooke_core::diagnostics::relative_l2(
+                    &scene.model.initial_positions,
+                    expected,
+                );
+            }
+            Self::SpringsOff => broken.model.stiffnesses.iter_mut().for_each(|k| *k = 0.0),
+            Self::StiffnessOnePercentOff => broken.material.stiffness_scale *= 1.01,
+            Self::DampingIgnored => broken.material.damping = 0.0,
+        }
+        let mut solver = reference(&broken);
+        solver.step(steps).expect("stable");
+        hooke_core::diagnostics::relative_l2(&state_of(&solver).positions, expected)
+    }
+
+    /// Every broken solver's score on `scene` (see [`Broken::score`]), printed.
+    pub fn scores(scene: &Scene, steps: u32, expected: &[glam::DVec3]) -> Vec<(Self, f64)> {
+        let scores: Vec<(Self, f64)> = Self::ALL
+            .iter()
+            .map(|b| (*b, b.score(scene, steps, expected)))
+            .collect();
+        let printed: Vec<String> = scores
+            .iter()
+            .map(|(b, s)| format!("{}: {s:.1e}", b.name()))
+            .collect();
+        eprintln!("broken solvers score: {}", printed.join(", "));
+        scores
+    }
+}
+
+/// Requires an accuracy `bar` (a relative L2 error a working solver stays below) to reject
+/// every broken solver in `scores`: a bar that a broken solver passes proves nothing.
+pub fn assert_bar_rejects_broken(bar: f64, scores: &[(Broken, f64)], what: &str) {
+    for (broken, score) in scores {
+        assert!(
+            bar < *score,
+            "{what}: the bar {bar:e} passes a solver whose {} ({score:e})",
+            broken.name()
+        );
+    }
+}
+
 /// The folder of the fixture scenes.
 pub fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
