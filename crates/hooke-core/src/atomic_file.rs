@@ -1,5 +1,6 @@
 //! Writing a file so that readers, and a run killed midway, never see it half written: the data
-//! goes to a temporary file in the same directory, which is then renamed over the target.
+//! goes to a temporary file in the same directory, which is then renamed over the target. A run
+//! killed while writing leaves the previous file (or none) and a `.NAME.XXXXXX.partial`.
 
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -13,7 +14,16 @@ pub fn write_atomically(
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let temporary = tempfile::NamedTempFile::new_in(directory)?;
+    // A hidden `.NAME.XXXXXX.partial` beside the target: a run killed mid-write leaves one, named
+    // so that nobody takes it for output.
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let temporary = tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(".partial")
+        .tempfile_in(directory)?;
     {
         let mut writer = BufWriter::new(temporary.as_file());
         write(&mut writer)?;
