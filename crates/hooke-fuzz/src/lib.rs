@@ -17,8 +17,11 @@ use hooke_core::{MassModel, Model, ModelOptions, StiffnessModel};
 /// may rightly ask for 8192 x 8192 vertices, which takes seconds and gigabytes, not a bug.
 pub const MAX_FUZZ_VERTICES: u64 = 20_000;
 
+/// A fuzz target: takes one input, returns if the input is handled, panics on a bug.
+pub type Target = fn(&[u8]);
+
 /// The targets by name, as `fuzz/fuzz_targets/` and the seed folders name them.
-pub const TARGETS: [(&str, fn(&[u8])); 3] = [("obj", obj), ("ply", ply), ("scene", scene)];
+pub const TARGETS: [(&str, Target); 3] = [("obj", obj), ("ply", ply), ("scene", scene)];
 
 /// An OBJ file.
 pub fn obj(data: &[u8]) {

@@ -106,7 +106,7 @@ fn every_method_matches_the_reference_after_100_steps() {
                 .copied()
                 .filter(|(b, _)| must_reject(method, *b))
                 .collect();
-            assert_bar_rejects_broken(tolerance(method), &rejected, method.name());
+            assert_bar_rejects_broken(tolerance(method), &rejected, &method.name());
         }
         for mut solver in methods(&context, &scene) {
             solver.step(100).expect("stable");
