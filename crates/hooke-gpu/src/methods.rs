@@ -39,6 +39,11 @@ impl Accumulation {
         }
     }
 
+    /// The accumulation of this [`Accumulation::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|a| a.name() == name)
+    }
+
     /// Whether results are bit-identical from run to run by construction. (Blending happens in
     /// primitive order, so the blend paths are deterministic on conforming hardware too; the
     /// tests check it rather than promise it.)

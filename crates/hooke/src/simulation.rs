@@ -14,9 +14,11 @@ use hooke_core::{
     Control, MassModel, Material, Model, ModelError, ModelOptions, PhaseTimes, SimError, Snapshot,
     Solver, State, StiffnessModel, TimingSource,
 };
-use hooke_cpu::{CpuError, CpuMemory, CpuOptions, CpuSolver};
+use hooke_cpu::{CpuError, CpuMemory, CpuOptions, CpuSolver, Method};
 use hooke_gpu::wgpu;
-use hooke_gpu::{GpuContext, GpuError, GpuMemory, GpuMethod, GpuSolver, positions_to_vec4};
+use hooke_gpu::{
+    Accumulation, GpuContext, GpuError, GpuMemory, GpuMethod, GpuSolver, positions_to_vec4,
+};
 
 /// Which solver a [`Simulation`] runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,6 +38,55 @@ impl SolverChoice {
             Self::Reference => "reference".to_owned(),
             Self::Cpu(options) => format!("cpu {}", options.method.name()),
             Self::Gpu(method) => format!("gpu {}", method.name()),
+        }
+    }
+
+    /// The solver named as on the command line: `backend` is `"reference"`, `"cpu"` or `"gpu"`;
+    /// `method` `"gather"` or `"scatter"` (default: gather on the CPU, scatter on the GPU);
+    /// `accumulation` one of GPU scatter's (default `"incidence"`); `threads` the CPU's workers
+    /// (default: one per core). Front ends that take names (Python, the browser) use this.
+    pub fn from_names(
+        backend: &str,
+        method: Option<&str>,
+        accumulation: Option<&str>,
+        threads: Option<usize>,
+    ) -> Result<Self, String> {
+        let unknown = |what: &str, found: &str, expected: &str| {
+            format!("unknown {what} '{found}' (expected {expected})")
+        };
+        let gather = match method {
+            None => None,
+            Some("gather") => Some(true),
+            Some("scatter") => Some(false),
+            Some(other) => return Err(unknown("method", other, "gather or scatter")),
+        };
+        let accumulation = match accumulation {
+            None => Accumulation::Incidence,
+            Some(name) => Accumulation::from_name(name).ok_or_else(|| {
+                let names: Vec<&str> = Accumulation::ALL.iter().map(|a| a.name()).collect();
+                unknown("accumulation", name, &names.join(", "))
+            })?,
+        };
+        if threads == Some(0) {
+            return Err("threads must be at least 1".to_owned());
+        }
+        match backend {
+            "reference" => Ok(Self::Reference),
+            "cpu" => Ok(Self::Cpu(CpuOptions {
+                method: if gather.unwrap_or(true) {
+                    Method::Gather
+                } else {
+                    Method::Scatter
+                },
+                threads,
+                ..Default::default()
+            })),
+            "gpu" => Ok(Self::Gpu(if gather.unwrap_or(false) {
+                GpuMethod::Gather
+            } else {
+                GpuMethod::Scatter(accumulation)
+            })),
+            other => Err(unknown("backend", other, "reference, cpu or gpu")),
         }
     }
 }
@@ -210,6 +261,13 @@ impl Simulation {
 
     pub fn self_collision(&self) -> Option<SelfCollision> {
         self.self_collision
+    }
+
+    /// Lets a CPU or reference simulation draw on `gpu` (a GPU simulation draws on its own).
+    pub fn draw_with(&mut self, gpu: Arc<GpuContext>) {
+        if self.gpu.is_none() {
+            self.gpu = Some(gpu);
+        }
     }
 
     /// The GPU this simulation runs on or draws with.

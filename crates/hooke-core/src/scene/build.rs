@@ -33,6 +33,24 @@ impl SceneFile {
             message,
         };
         let (mesh, mesh_warnings) = self.build_mesh(path, &invalid)?;
+        self.build_with_mesh(mesh, mesh_warnings, path, allow_unstable)
+    }
+
+    /// Builds the scene around a mesh given directly (arrays from Python, say): the `[mesh]`
+    /// section is not read. `path` names the scene in errors.
+    pub fn build_with_mesh(
+        &self,
+        mesh: Mesh,
+        mesh_warnings: Vec<MeshWarning>,
+        path: &Path,
+        allow_unstable: bool,
+    ) -> Result<Scene, SceneError> {
+        let path_name = path.display().to_string();
+        let invalid = |field: &str, message: String| SceneError::Invalid {
+            path: path_name.clone(),
+            field: field.to_owned(),
+            message,
+        };
 
         let material = &self.material;
         let mass = match (
@@ -93,8 +111,53 @@ impl SceneFile {
 
         let (control, collision) = self.build_inputs(&mesh, &invalid)?;
         model.collision = collision;
-        let limit = stability_limit(&model, material.damping);
-        let dt = match self.simulation.dt {
+        require(self.simulation.frame_every > 0, || {
+            invalid("simulation.frame_every", "must be at least 1".into())
+        })?;
+        let name = self.name.clone().unwrap_or_else(|| {
+            path.file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scene".to_owned())
+        });
+        let mut scene = Scene {
+            name,
+            mesh,
+            mesh_warnings,
+            model,
+            material: Material {
+                dt: 0.0,
+                damping: material.damping,
+                gravity: DVec3::from_array(self.simulation.gravity),
+                stiffness_scale: 1.0,
+            },
+            control,
+            steps: self.simulation.steps,
+            frame_every: self.simulation.frame_every,
+            max_stable_dt: 0.0,
+        };
+        scene.set_time_step(self.simulation.dt, path, allow_unstable)?;
+        Ok(scene)
+    }
+}
+
+impl Scene {
+    /// Sets dt from the stability bound of the model as it is now (after a caller changed its
+    /// masses or stiffnesses, say): `"auto"` is a safe fraction of the bound; a dt above the
+    /// bound is refused unless `allow_unstable`. `path` names the scene in errors.
+    pub fn set_time_step(
+        &mut self,
+        dt: TimeStep,
+        path: &Path,
+        allow_unstable: bool,
+    ) -> Result<(), SceneError> {
+        let path_name = path.display().to_string();
+        let invalid = |field: &str, message: String| SceneError::Invalid {
+            path: path_name.clone(),
+            field: field.to_owned(),
+            message,
+        };
+        let limit = stability_limit(&self.model, self.material.damping);
+        self.material.dt = match dt {
             TimeStep::Auto => {
                 require(limit.max_dt.is_finite(), || {
                     invalid(
@@ -123,32 +186,12 @@ impl SceneFile {
                 dt
             }
         };
-        require(self.simulation.frame_every > 0, || {
-            invalid("simulation.frame_every", "must be at least 1".into())
-        })?;
-        let name = self.name.clone().unwrap_or_else(|| {
-            path.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "scene".to_owned())
-        });
-        Ok(Scene {
-            name,
-            mesh,
-            mesh_warnings,
-            model,
-            material: Material {
-                dt,
-                damping: material.damping,
-                gravity: DVec3::from_array(self.simulation.gravity),
-                stiffness_scale: 1.0,
-            },
-            control,
-            steps: self.simulation.steps,
-            frame_every: self.simulation.frame_every,
-            max_stable_dt: limit.max_dt,
-        })
+        self.max_stable_dt = limit.max_dt;
+        Ok(())
     }
+}
 
+impl SceneFile {
     fn build_mesh(
         &self,
         path: &Path,
