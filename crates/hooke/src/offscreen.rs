@@ -99,6 +99,11 @@ impl OffscreenRun {
         })
     }
 
+    /// The image size, pixels.
+    pub fn size(&self) -> [u32; 2] {
+        self.target.size
+    }
+
     pub fn steps_taken(&self) -> u64 {
         self.simulation.steps_taken()
     }

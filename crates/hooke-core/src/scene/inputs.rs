@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 
-use super::{ColliderKind, SceneError, SceneFile, require};
+use super::{ColliderKind, SceneError, SceneFile, SelfCollisionSection, require};
 use crate::collide::{Collider, Dynamics, KeyframePath, MAX_KEYFRAMES, Shape};
 use crate::mesh::Mesh;
 use crate::selfcollide::{self, SelfCollision};
@@ -277,9 +277,23 @@ impl SceneFile {
         &self,
         invalid: &dyn Fn(&str, String) -> SceneError,
     ) -> Result<Option<SelfCollision>, SceneError> {
-        let Some(section) = self.self_collision.as_ref().filter(|s| s.enabled) else {
+        self.self_collision
+            .as_ref()
+            .map_or(Ok(None), |section| section.params(invalid))
+    }
+}
+
+impl SelfCollisionSection {
+    /// The self-collision set-up this section asks for (`None` when disabled), its ranges
+    /// checked; `invalid` makes the error for a field.
+    pub fn params(
+        &self,
+        invalid: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<Option<SelfCollision>, SceneError> {
+        if !self.enabled {
             return Ok(None);
-        };
+        }
+        let section = self;
         let positive = |name: &str, value: f64| {
             require(value > 0.0 && value.is_finite(), || {
                 invalid(

@@ -1,0 +1,151 @@
+"""Types of hooke's native module (Rust, PyO3). Units are SI: m, kg, s, N."""
+
+from collections.abc import Sequence
+from os import PathLike
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+Vec3 = tuple[float, float, float] | Sequence[float]
+Backend = Literal["reference", "cpu", "gpu"]
+Method = Literal["gather", "scatter"]
+Accumulation = Literal[
+    "atomic-f32", "atomic-fixed", "incidence", "blend-r32f", "blend-r16f", "blend-rgba8"
+]
+
+class HookeError(Exception):
+    """Every error hooke raises is a HookeError."""
+
+class InputError(HookeError):
+    """A scene, mesh, array or argument hooke cannot take; the message says which and why."""
+
+class SimulationError(HookeError):
+    """The simulation left the numbers, or a fixed-point sum overflowed."""
+
+class GpuError(HookeError):
+    """No GPU adapter, a missing optional feature, or a device error."""
+
+class Snapshot:
+    """A saved state (positions, previous positions, balls, step counter) to restore later."""
+
+    @property
+    def steps_taken(self) -> int: ...
+
+class Simulation:
+    """A mass-spring simulation on the float64 reference, the CPU or the GPU solver."""
+
+    @staticmethod
+    def from_scene(
+        path: str | PathLike[str],
+        *,
+        backend: Backend = "cpu",
+        method: Method | None = None,
+        accumulation: Accumulation | None = None,
+        threads: int | None = None,
+        allow_unstable: bool = False,
+    ) -> Simulation:
+        """A simulation of a scene file (TOML), on the solver named as on the CLI."""
+
+    @staticmethod
+    def from_arrays(
+        vertices: npt.ArrayLike,
+        triangles: npt.ArrayLike,
+        *,
+        stiffness: float | npt.ArrayLike,
+        mass_total: float | None = None,
+        mass_per_vertex: float | npt.ArrayLike | None = None,
+        area_density: float | None = None,
+        stiffness_model: Literal["uniform", "inverse-rest-length"] = "uniform",
+        damping: float = 0.0,
+        pins: Sequence[int] | None = None,
+        select: Sequence[Literal["corners", "top-corners", "top-edge"]] | None = None,
+        dt: float | None = None,
+        gravity: Vec3 = (0.0, -9.81, 0.0),
+        wind: dict[str, Any] | None = None,
+        thickness: float = 0.0,
+        colliders: Sequence[dict[str, Any]] | None = None,
+        self_collision: dict[str, Any] | None = None,
+        backend: Backend = "cpu",
+        method: Method | None = None,
+        accumulation: Accumulation | None = None,
+        threads: int | None = None,
+        allow_unstable: bool = False,
+    ) -> Simulation:
+        """A simulation of vertices (N, 3) and triangles (T, 3), with a scene file's settings
+        as keywords. dt=None is 0.9 of the stability bound."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def vertex_count(self) -> int: ...
+    @property
+    def spring_count(self) -> int: ...
+    @property
+    def steps_taken(self) -> int: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def damping(self) -> float: ...
+    @property
+    def stiffness_scale(self) -> float: ...
+    @property
+    def gravity(self) -> tuple[float, float, float]: ...
+    def describe(self) -> str: ...
+    def step(self, steps: int) -> None:
+        """Advances `steps` steps, with the GIL released."""
+
+    def check(self) -> None: ...
+    def positions(self) -> npt.NDArray[np.float32]: ...
+    def previous_positions(self) -> npt.NDArray[np.float32]: ...
+    def set_positions(
+        self, positions: npt.ArrayLike, previous: npt.ArrayLike | None = None
+    ) -> None: ...
+    def snapshot(self) -> Snapshot: ...
+    def restore(self, snapshot: Snapshot) -> None: ...
+    def save_state(self, path: str | PathLike[str]) -> None: ...
+    def load_state(self, path: str | PathLike[str]) -> None: ...
+    def write_frame(self, path: str | PathLike[str]) -> None: ...
+    def set_drags(self, drags: Sequence[tuple[int | Sequence[int], Vec3, float]]) -> None: ...
+    def set_point_forces(self, forces: Sequence[tuple[int, Vec3]]) -> None: ...
+    def set_wind(self, velocity: Vec3 | None, coefficient: float = 0.5) -> None: ...
+    def set_ball_forces(self, forces: Sequence[tuple[int, Vec3]]) -> None: ...
+    def set_material(
+        self,
+        *,
+        dt: float | None = None,
+        damping: float | None = None,
+        stiffness_scale: float | None = None,
+        gravity: Vec3 | None = None,
+        allow_unstable: bool = False,
+    ) -> None: ...
+    def set_self_collision(self, settings: dict[str, Any] | None) -> None: ...
+    def energy(self) -> dict[str, float]: ...
+    def max_strain(self) -> tuple[float, int]: ...
+    def pin_reactions(
+        self,
+    ) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.float64]]: ...
+    def colliders(self) -> list[dict[str, Any]]: ...
+    def stable_dt(self) -> tuple[float, int | None]: ...
+    def memory(self) -> dict[str, int]: ...
+    def step_timed(self) -> dict[str, Any]: ...
+    def triangles(self) -> npt.NDArray[np.uint32]: ...
+    def springs(self) -> npt.NDArray[np.uint32]: ...
+    def pins(self) -> list[int]: ...
+    def render(
+        self, width: int = 640, height: int = 360, *, strain: bool = False, wireframe: bool = False
+    ) -> npt.NDArray[np.uint8]: ...
+    def save_png(
+        self,
+        path: str | PathLike[str],
+        width: int = 640,
+        height: int = 360,
+        *,
+        strain: bool = False,
+        wireframe: bool = False,
+    ) -> None: ...
+
+def adapters() -> list[dict[str, Any]]: ...
+def springs(triangles: npt.ArrayLike) -> npt.NDArray[np.uint32]: ...
