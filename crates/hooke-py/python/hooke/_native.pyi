@@ -2,15 +2,15 @@
 
 from collections.abc import Sequence
 from os import PathLike
-from typing import Any, Literal
+from typing import Any, Literal, TypeAlias
 
 import numpy as np
 import numpy.typing as npt
 
-Vec3 = tuple[float, float, float] | Sequence[float]
-Backend = Literal["reference", "cpu", "gpu"]
-Method = Literal["gather", "scatter"]
-Accumulation = Literal[
+Vec3: TypeAlias = tuple[float, float, float] | Sequence[float]
+Backend: TypeAlias = Literal["reference", "cpu", "gpu"]
+Method: TypeAlias = Literal["gather", "scatter"]
+Accumulation: TypeAlias = Literal[
     "atomic-f32", "atomic-fixed", "incidence", "blend-r32f", "blend-r16f", "blend-rgba8"
 ]
 

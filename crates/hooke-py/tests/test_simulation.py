@@ -1,0 +1,359 @@
+"""The Python package against the CLI, against physics, and against bad input."""
+
+import threading
+import tracemalloc
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from conftest import SCENES, run_cli
+
+import hooke
+
+G = 9.81
+
+
+def sheet(n: int = 8) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+    """An n x n grid in the x-z plane at height 1 m, 1 m wide: vertices and triangles."""
+    xs = np.linspace(0.0, 1.0, n)
+    vertices = np.array([[x, 1.0, z] for z in xs for x in xs])
+    triangles = []
+    for r in range(n - 1):
+        for c in range(n - 1):
+            a, b, d = r * n + c, r * n + c + 1, (r + 1) * n + c
+            triangles += [[a, d, b], [b, d, d + 1]]
+    return vertices, np.array(triangles)
+
+
+# ---- the same results as the CLI ------------------------------------------------------------
+
+
+@pytest.mark.parametrize("method", ["gather", "scatter"])
+def test_python_and_cli_write_byte_identical_states_and_frames(
+    tmp_path: Path, method: Literal["gather", "scatter"]
+) -> None:
+    scene = SCENES / "wind-and-balls.toml"  # dynamic balls, wind, applied forces
+    out = tmp_path / "cli"
+    run_cli(
+        "run",
+        str(scene),
+        "--steps",
+        "100",
+        "--frame-every",
+        "100",
+        "--method",
+        method,
+        "--output",
+        str(out),
+    )
+    sim = hooke.Simulation.from_scene(scene, backend="cpu", method=method)
+    sim.step(100)
+    sim.save_state(tmp_path / "py.ply")
+    sim.write_frame(tmp_path / "frame.ply")
+    assert (tmp_path / "py.ply").read_bytes() == (out / "final-state.ply").read_bytes()
+    assert (tmp_path / "py.toml").read_bytes() == (out / "final-state.toml").read_bytes()
+    assert (tmp_path / "frame.ply").read_bytes() == (out / "frame-0000100.ply").read_bytes()
+
+
+def test_a_python_state_resumes_on_the_cli_and_back(tmp_path: Path) -> None:
+    scene = SCENES / "ball-through-curtain.toml"  # keyframed colliders
+    whole = hooke.Simulation.from_scene(scene)
+    whole.step(200)
+    half = hooke.Simulation.from_scene(scene)
+    half.step(100)
+    half.save_state(tmp_path / "half.ply")
+    run_cli(
+        "run",
+        str(scene),
+        "--steps",
+        "100",
+        "--no-frames",
+        "--resume",
+        str(tmp_path / "half.ply"),
+        "--output",
+        str(tmp_path / "cli"),
+    )
+    resumed = hooke.Simulation.from_scene(scene)
+    resumed.load_state(tmp_path / "cli" / "final-state.ply")
+    assert resumed.steps_taken == 200
+    np.testing.assert_array_equal(resumed.positions(), whole.positions())
+
+
+# ---- physics reached from Python -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("backend", ["reference", "cpu"])
+def test_free_fall_follows_verlet_in_closed_form(backend: Literal["reference", "cpu"]) -> None:
+    vertices, triangles = sheet(4)
+    sim = hooke.Simulation.from_arrays(
+        vertices, triangles, stiffness=10.0, mass_total=0.1, dt=1e-3, backend=backend
+    )
+    n = 300
+    sim.step(n)
+    # Delta-form Verlet from rest: the drop after n steps is g dt^2 n (n + 1) / 2.
+    expected = 1.0 - G * 1e-3**2 * n * (n + 1) / 2
+    # positions() are float32: the reference is exact to their rounding (6e-8), the float32
+    # solver to its own accumulated rounding.
+    tolerance = 1e-7 if backend == "reference" else 1e-6
+    np.testing.assert_allclose(sim.positions()[:, 1], expected, rtol=tolerance)
+
+
+def test_energy_is_conserved_without_damping_and_lost_with_it() -> None:
+    vertices, triangles = sheet(10)
+
+    def drift(damping: float) -> float:
+        sim = hooke.Simulation.from_arrays(
+            vertices,
+            triangles,
+            stiffness=200.0,
+            mass_total=0.2,
+            select=["corners"],
+            damping=damping,
+            backend="reference",
+        )
+        start = sim.energy()["total"]
+        kinetic = 0.0
+        for _ in range(40):
+            sim.step(50)
+            kinetic = max(kinetic, sim.energy()["kinetic"])
+        return abs(sim.energy()["total"] - start) / kinetic
+
+    # Verlet's energy error oscillates with the motion; measured 1.9% of the largest kinetic
+    # energy undamped. Damping of 0.0005 kg/s loses ~44%: the bar tells the two apart.
+    assert drift(0.0) < 0.03
+    assert drift(0.0005) > 0.1
+
+
+def test_pin_reactions_balance_the_weight_of_a_hanging_cloth() -> None:
+    vertices, triangles = sheet(8)
+    sim = hooke.Simulation.from_arrays(
+        vertices,
+        triangles,
+        stiffness=100.0,
+        mass_total=0.2,
+        select=["corners"],
+        damping=0.05,
+        backend="reference",
+    )
+    sim.step(20000)  # settles: heavy damping
+    pins, forces = sim.pin_reactions()
+    assert sorted(pins.tolist()) == sorted(sim.pins()) and len(pins) == 4
+    weight = 0.2 * G
+    np.testing.assert_allclose(forces.sum(axis=0), [0.0, weight, 0.0], atol=2e-3 * weight)
+
+
+@pytest.mark.parametrize("backend", ["cpu", "gpu"])
+def test_solvers_agree_with_the_float64_reference(
+    backend: Literal["cpu", "gpu"], request: pytest.FixtureRequest
+) -> None:
+    if backend == "gpu":
+        request.getfixturevalue("gpu")
+    scene = SCENES / "irregular-pinned.toml"
+    reference = hooke.Simulation.from_scene(scene, backend="reference")
+    reference.step(100)
+    sim = hooke.Simulation.from_scene(scene, backend=backend)
+    sim.step(100)
+    expected = reference.positions().astype(np.float64)
+    error = np.linalg.norm(sim.positions() - expected) / np.linalg.norm(expected)
+    assert error < 1e-5  # float32 rounding scores 1.5e-7; a cloth that never moved, 1e-3
+
+
+# ---- live control ---------------------------------------------------------------------------
+
+
+def test_live_material_edits_equal_a_simulation_built_with_them() -> None:
+    scene = SCENES / "cloth-pinned.toml"
+    live = hooke.Simulation.from_scene(scene)
+    live.step(50)
+    saved = live.snapshot()
+    live.set_material(damping=0.002, stiffness_scale=0.5, gravity=(0.0, -5.0, 1.0))
+    live.set_wind((1.0, 0.0, 2.0), 0.3)
+    live.step(100)
+    rebuilt = hooke.Simulation.from_scene(scene)
+    rebuilt.set_material(damping=0.002, stiffness_scale=0.5, gravity=(0.0, -5.0, 1.0))
+    rebuilt.set_wind((1.0, 0.0, 2.0), 0.3)
+    rebuilt.restore(saved)
+    rebuilt.step(100)
+    np.testing.assert_array_equal(live.positions(), rebuilt.positions())
+    untouched = hooke.Simulation.from_scene(scene)
+    untouched.step(150)
+    assert not np.array_equal(untouched.positions(), live.positions())
+
+
+def test_a_drag_pulls_its_vertex_to_the_target() -> None:
+    sim = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml")
+    target = (0.0, 1.5, 0.0)
+    middle = sim.vertex_count // 2 + 32
+    start = np.linalg.norm(sim.positions()[middle] - target)
+    sim.set_drags([(middle, target, 50.0)])
+    sim.step(3000)
+    assert np.linalg.norm(sim.positions()[middle] - target) < 0.5 * start
+    sim.set_drags([])
+    sim.set_point_forces([(middle, (0.0, 0.1, 0.0))])
+
+
+def test_snapshot_and_restore_continue_bit_for_bit() -> None:
+    scene = SCENES / "wind-and-balls.toml"
+    whole = hooke.Simulation.from_scene(scene)
+    whole.step(200)
+    sim = hooke.Simulation.from_scene(scene)
+    sim.step(100)
+    saved = sim.snapshot()
+    sim.step(37)
+    sim.restore(saved)
+    assert sim.steps_taken == 100
+    sim.step(100)
+    np.testing.assert_array_equal(sim.positions(), whole.positions())
+
+
+def test_colliders_and_self_collision_from_dicts() -> None:
+    vertices, triangles = sheet(12)
+    ball = {"kind": "sphere", "center": [0.5, 0.6, 0.5], "radius": 0.2, "friction": 0.3}
+    ground = {"kind": "plane", "point": [0, 0, 0], "normal": [0, 1, 0]}
+    sim = hooke.Simulation.from_arrays(
+        vertices,
+        triangles,
+        stiffness=100.0,
+        mass_total=0.1,
+        damping=0.001,
+        thickness=0.005,
+        colliders=[ball, ground],
+        self_collision={"distance": 0.02, "grids": 2},
+    )
+    sim.step(4000)
+    p = sim.positions().astype(np.float64)
+    clearance = np.linalg.norm(p - [0.5, 0.6, 0.5], axis=1) - 0.2
+    assert clearance.min() > 0.0 and p[:, 1].min() > 0.0
+    assert [c["kind"] for c in sim.colliders()] == ["sphere", "plane"]
+    sim.set_self_collision(None)
+    sim.step(10)
+
+
+def test_balls_take_forces() -> None:
+    sim = hooke.Simulation.from_scene(SCENES / "wind-and-balls.toml")
+    dynamic = [i for i, c in enumerate(sim.colliders()) if c["dynamic"]]
+    sim.set_ball_forces([(dynamic[0], (0.0, 2.0, 0.0))])
+    sim.step(10)
+    with pytest.raises(hooke.InputError, match="not a dynamic ball"):
+        sim.set_ball_forces([(99, (0.0, 1.0, 0.0))])
+
+
+# ---- reports --------------------------------------------------------------------------------
+
+
+def test_reports_match_the_cli_scene_facts() -> None:
+    sim = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml")
+    assert (sim.vertex_count, sim.spring_count) == (4096, 12033)
+    dt, vertex = sim.stable_dt()
+    assert sim.dt == pytest.approx(0.9 * dt) and vertex is not None
+    assert sim.memory()["total"] > 0
+    timed = sim.step_timed()
+    assert timed["total"] > 0 and timed["source"] == "wall-clock"
+    strain, spring = sim.max_strain()
+    assert 0 <= spring < sim.spring_count and strain >= 0
+    assert sim.springs().shape == (12033, 2)
+    np.testing.assert_array_equal(hooke.springs(sim.triangles()), sim.springs())
+
+
+def test_render_draws_the_cloth(tmp_path: Path, gpu: None) -> None:
+    sim = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml")
+    sim.step(200)
+    image = sim.render(160, 90)
+    assert image.shape == (90, 160, 4) and image.dtype == np.uint8
+    pixels = image.astype(np.int32)
+    salmon = (pixels[..., 0] - pixels[..., 1]) > 40  # the cloth's checker; the ground is grey
+    assert salmon.sum() > 500, salmon.sum()
+    sim.save_png(tmp_path / "cloth.png", 160, 90)
+    assert (tmp_path / "cloth.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# ---- errors ---------------------------------------------------------------------------------
+
+
+def test_bad_input_raises_hookes_exceptions_with_the_librarys_message(tmp_path: Path) -> None:
+    vertices, triangles = sheet(3)
+    bad_scene = tmp_path / "bad.toml"
+    bad_scene.write_text('[mesh]\ngenerator = "grid"\nresolution = [4, 4]\nsizes = 3\n')
+    with pytest.raises(hooke.InputError, match=r"(?s)bad\.toml.*line 4.*sizes"):
+        hooke.Simulation.from_scene(bad_scene)
+    with pytest.raises(hooke.InputError, match="nope.toml"):
+        hooke.Simulation.from_scene(tmp_path / "nope.toml")
+    with pytest.raises(hooke.InputError, match=r"shape \(N, 3\)"):
+        hooke.Simulation.from_arrays(vertices[:, :2], triangles, stiffness=1.0, mass_total=1.0)
+    with pytest.raises(hooke.InputError, match="integer"):
+        hooke.Simulation.from_arrays(vertices, triangles * 1.0, stiffness=1.0, mass_total=1.0)
+    with pytest.raises(hooke.InputError, match="pins.vertices: vertex 99 does not exist"):
+        hooke.Simulation.from_arrays(vertices, triangles, stiffness=1.0, mass_total=1.0, pins=[99])
+    with pytest.raises(hooke.InputError, match="material.mass"):
+        hooke.Simulation.from_arrays(vertices, triangles, stiffness=1.0)
+    with pytest.raises(hooke.InputError, match="stiffness must be a number or an array"):
+        hooke.Simulation.from_arrays(vertices, triangles, stiffness=[1.0, 2.0], mass_total=1.0)
+    with pytest.raises(hooke.InputError, match="unknown backend"):
+        hooke.Simulation.from_arrays(
+            vertices,
+            triangles,
+            stiffness=1.0,
+            mass_total=1.0,
+            backend="tpu",  # type: ignore[arg-type]
+        )
+    sim = hooke.Simulation.from_arrays(vertices, triangles, stiffness=1.0, mass_total=1.0)
+    with pytest.raises(hooke.InputError, match="9 rows"):
+        sim.set_positions(np.zeros((4, 3)))
+    with pytest.raises(hooke.InputError, match="above the stability bound"):
+        sim.set_material(dt=10.0)
+    with pytest.raises(hooke.InputError, match="vertex 50"):
+        sim.set_drags([(50, (0, 0, 0), 1.0)])
+    assert issubclass(hooke.SimulationError, hooke.HookeError)
+
+
+def test_a_blow_up_raises_simulation_error() -> None:
+    vertices, triangles = sheet(4)
+    sim = hooke.Simulation.from_arrays(
+        vertices, triangles, stiffness=1000.0, mass_total=0.01, dt=0.05, allow_unstable=True
+    )
+    with pytest.raises(hooke.SimulationError, match="step"):
+        sim.step(100000)
+
+
+# ---- the GIL and copies ---------------------------------------------------------------------
+
+
+def test_step_releases_the_gil() -> None:
+    sim = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml", backend="reference")
+    counts = 0
+    running = True
+
+    def count() -> None:
+        nonlocal counts
+        while running:
+            counts += 1
+
+    thread = threading.Thread(target=count)
+    thread.start()
+    before = counts
+    sim.step(300)  # ~0.3 s of float64 stepping
+    during = counts - before
+    running = False
+    thread.join()
+    # With the GIL held the counter could not move until step returned.
+    assert during > 10_000, during
+
+
+def test_positions_and_set_positions_make_no_copies_of_their_own() -> None:
+    sim = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml")
+    one_copy = sim.vertex_count * 3 * 4
+    tracemalloc.start()
+    positions = sim.positions()
+    _, peak_out = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    # The array wraps the vector Rust filled: numpy allocates no data buffer of its own.
+    assert peak_out < one_copy / 4, peak_out
+    mine = np.ascontiguousarray(positions, dtype=np.float64)
+    tracemalloc.start()
+    sim.set_positions(mine)
+    _, peak_in = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    # A contiguous float64 array is read in place.
+    assert peak_in < one_copy / 4, peak_in
