@@ -25,6 +25,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         simulation.step(batch)?;
     }
     let elapsed = start.elapsed().as_secs_f64();
-    println!("ms/step {:.6}", elapsed * 1e3 / f64::from(steps / batch * batch));
+    println!(
+        "ms/step {:.6}",
+        elapsed * 1e3 / f64::from(steps / batch * batch)
+    );
     Ok(())
 }
