@@ -162,10 +162,10 @@ pub fn to_toml(value: &Bound<'_, PyAny>, field: &str) -> PyResult<toml::Value> {
         return Ok(Value::String(text));
     }
     // Integers first: a float is not an integer, but an integer reads as a float.
-    if value.hasattr("__index__")? {
-        if let Ok(integer) = value.extract::<i64>() {
-            return Ok(Value::Integer(integer));
-        }
+    if value.hasattr("__index__")?
+        && let Ok(integer) = value.extract::<i64>()
+    {
+        return Ok(Value::Integer(integer));
     }
     if let Ok(number) = value.extract::<f64>() {
         return Ok(Value::Float(number));

@@ -34,7 +34,7 @@ impl Snapshot {
 
 /// The simulation, on its own or inside the offscreen renderer once something was drawn.
 enum Holder {
-    Bare(hooke::Simulation),
+    Bare(Box<hooke::Simulation>),
     Drawing(Box<OffscreenRun>),
 }
 
@@ -77,7 +77,7 @@ fn open(scene: &hooke_core::scene::Scene, choice: SolverChoice) -> PyResult<Simu
     };
     let simulation = hooke::Simulation::from_scene(scene, choice, gpu).or_raise()?;
     Ok(Simulation {
-        holder: Mutex::new(Some(Holder::Bare(simulation))),
+        holder: Mutex::new(Some(Holder::Bare(Box::new(simulation)))),
         name: scene.name.clone(),
     })
 }
@@ -787,7 +787,7 @@ impl Simulation {
                             }
                         }
                     }
-                    match OffscreenRun::new(simulation, [width, height]) {
+                    match OffscreenRun::new(*simulation, [width, height]) {
                         Ok(run) => Box::new(run),
                         Err(e) => return Err(crate::errors::IntoPyErr::into_py_err(e)),
                     }
