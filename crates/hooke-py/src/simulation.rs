@@ -439,9 +439,9 @@ impl Simulation {
                 })
             })
             .collect::<PyResult<Vec<_>>>()?;
-        self.update_control(|control, n| {
+        self.update_control(|control, model| {
             for drag in &drags {
-                check_vertices(&drag.vertices, n, "drag")?;
+                check_vertices(&drag.vertices, model.vertex_count(), "drag")?;
             }
             control.drags = drags;
             Ok(())
@@ -459,9 +459,9 @@ impl Simulation {
                 })
             })
             .collect::<PyResult<Vec<_>>>()?;
-        self.update_control(|control, n| {
+        self.update_control(|control, model| {
             let vertices: Vec<u32> = forces.iter().map(|f| f.vertex).collect();
-            check_vertices(&vertices, n, "point force")?;
+            check_vertices(&vertices, model.vertex_count(), "point force")?;
             control.point_forces = forces;
             Ok(())
         })
@@ -501,8 +501,8 @@ impl Simulation {
                 })
             })
             .collect::<PyResult<Vec<_>>>()?;
-        self.with(|s| {
-            let colliders = &s.model().collision.colliders;
+        self.update_control(|control, model| {
+            let colliders = &model.collision.colliders;
             for push in &pushes {
                 let dynamic = colliders
                     .get(push.collider)
@@ -515,9 +515,8 @@ impl Simulation {
                     )));
                 }
             }
-            let mut control = s.control().clone();
             control.ball_pushes = pushes;
-            s.set_control(control).or_raise()
+            Ok(())
         })
     }
 
@@ -851,11 +850,14 @@ impl Simulation {
         f(holder.simulation())
     }
 
-    /// Changes the control through `f` (given it and the vertex count) and sends it.
-    fn update_control(&self, f: impl FnOnce(&mut Control, usize) -> PyResult<()>) -> PyResult<()> {
+    /// Changes the control through `f` (given it and the model, to check against) and sends it.
+    fn update_control(
+        &self,
+        f: impl FnOnce(&mut Control, &hooke_core::Model) -> PyResult<()>,
+    ) -> PyResult<()> {
         self.with(|s| {
             let mut control = s.control().clone();
-            f(&mut control, s.model().vertex_count())?;
+            f(&mut control, s.model())?;
             s.set_control(control).or_raise()
         })
     }
