@@ -4,7 +4,7 @@
 use std::collections::HashSet;
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 use hooke_core::mesh::load_mesh;
 use hooke_testkit::shipped_scene_path;
@@ -42,7 +42,8 @@ fn a_run_killed_while_writing_frames_leaves_no_torn_file() {
     let out = dir.path().join("out");
     let scene = shipped_scene_path("bench-grid-128.toml");
     const KILLS: usize = 4;
-    for _ in 0..KILLS {
+    for kill in 0..KILLS {
+        let spawned = SystemTime::now();
         let mut child = Command::new(env!("CARGO_BIN_EXE_hooke"))
             .args(["run", scene.to_str().expect("utf-8"), "--frame-every", "1"])
             .args(["--steps", "1000000", "--output"])
@@ -51,11 +52,22 @@ fn a_run_killed_while_writing_frames_leaves_no_torn_file() {
             .stderr(Stdio::null())
             .spawn()
             .expect("hooke starts");
-        // Once two frames stand under their names, kill the moment a new write is seen under
-        // way (its temporary file exists).
+        // Once this run has written `kill + 1` frames (so that each kill cuts a different
+        // frame's write), kill it the moment a new write is seen under way (its temporary file
+        // exists).
         let before = partials_in(&out);
         let started = Instant::now();
-        while (frames_in(&out).len() < 2 || partials_in(&out).is_subset(&before))
+        let written = |since: SystemTime| {
+            frames_in(&out)
+                .iter()
+                .filter(|f| {
+                    std::fs::metadata(f)
+                        .and_then(|m| m.modified())
+                        .is_ok_and(|t| t >= since)
+                })
+                .count()
+        };
+        while (written(spawned) <= kill || partials_in(&out).is_subset(&before))
             && started.elapsed() < Duration::from_secs(60)
         {
             std::thread::sleep(Duration::from_micros(200));
@@ -73,7 +85,10 @@ fn a_run_killed_while_writing_frames_leaves_no_torn_file() {
         partials > 0,
         "no kill landed inside a write: the test proves nothing"
     );
-    assert!(frames.len() >= 2);
+    assert!(
+        frames.len() >= KILLS,
+        "each run wrote frames before its kill"
+    );
     for frame in &frames {
         let (mesh, _) =
             load_mesh(frame).unwrap_or_else(|e| panic!("{} is torn: {e}", frame.display()));
