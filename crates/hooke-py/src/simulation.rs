@@ -450,15 +450,10 @@ impl Simulation {
 
     /// Constant forces on vertices: a list of `(vertex, force)`, N. Replaces the previous ones.
     fn set_point_forces(&self, forces: Vec<(u32, [f64; 3])>) -> PyResult<()> {
-        let forces = forces
+        let forces: Vec<PointForce> = indexed_forces(forces, "a point force")?
             .into_iter()
-            .map(|(vertex, force)| {
-                Ok(PointForce {
-                    vertex,
-                    force: vector(force, "a point force")?,
-                })
-            })
-            .collect::<PyResult<Vec<_>>>()?;
+            .map(|(vertex, force)| PointForce { vertex, force })
+            .collect();
         self.update_control(|control, model| {
             let vertices: Vec<u32> = forces.iter().map(|f| f.vertex).collect();
             check_vertices(&vertices, model.vertex_count(), "point force")?;
@@ -492,15 +487,10 @@ impl Simulation {
 
     /// Forces on dynamic balls: a list of `(collider index, force)`, N, added to each ball's own.
     fn set_ball_forces(&self, forces: Vec<(usize, [f64; 3])>) -> PyResult<()> {
-        let pushes = forces
+        let pushes: Vec<BallPush> = indexed_forces(forces, "a ball force")?
             .into_iter()
-            .map(|(collider, force)| {
-                Ok(BallPush {
-                    collider,
-                    force: vector(force, "a ball force")?,
-                })
-            })
-            .collect::<PyResult<Vec<_>>>()?;
+            .map(|(collider, force)| BallPush { collider, force })
+            .collect();
         self.update_control(|control, model| {
             let colliders = &model.collision.colliders;
             for push in &pushes {
@@ -822,6 +812,14 @@ impl Simulation {
         };
         image.save_png(&path).or_raise()
     }
+}
+
+/// `(index, force)` pairs with every force checked finite; `what` names them in errors.
+fn indexed_forces<I>(forces: Vec<(I, [f64; 3])>, what: &str) -> PyResult<Vec<(I, DVec3)>> {
+    forces
+        .into_iter()
+        .map(|(index, force)| Ok((index, vector(force, what)?)))
+        .collect()
 }
 
 /// Every vertex in range of a mesh of `n` vertices.
