@@ -67,4 +67,37 @@ impl Control {
     pub fn acts_on_cloth(&self) -> bool {
         self.wind.is_some() || !self.point_forces.is_empty() || !self.drags.is_empty()
     }
+
+    /// Checks the control against `model`: every vertex it names exists and every ball push
+    /// is on a dynamic ball. Front ends that take controls from users (Python, the browser)
+    /// call this before handing one to a solver, which assumes it holds.
+    pub fn check(&self, model: &crate::Model) -> Result<(), String> {
+        let n = model.vertex_count();
+        let vertices = self
+            .drags
+            .iter()
+            .flat_map(|d| d.vertices.iter().map(|v| (*v, "drag")))
+            .chain(self.point_forces.iter().map(|f| (f.vertex, "point force")));
+        for (vertex, what) in vertices {
+            if vertex as usize >= n {
+                return Err(format!(
+                    "a {what} names vertex {vertex}, but the mesh has {n} vertices"
+                ));
+            }
+        }
+        let colliders = &model.collision.colliders;
+        for push in &self.ball_pushes {
+            let dynamic = colliders
+                .get(push.collider)
+                .is_some_and(|c| c.dynamics.is_some());
+            if !dynamic {
+                return Err(format!(
+                    "collider {} is not a dynamic ball (the scene has {} colliders)",
+                    push.collider,
+                    colliders.len()
+                ));
+            }
+        }
+        Ok(())
+    }
 }

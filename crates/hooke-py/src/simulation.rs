@@ -439,13 +439,7 @@ impl Simulation {
                 })
             })
             .collect::<PyResult<Vec<_>>>()?;
-        self.update_control(|control, model| {
-            for drag in &drags {
-                check_vertices(&drag.vertices, model.vertex_count(), "drag")?;
-            }
-            control.drags = drags;
-            Ok(())
-        })
+        self.update_control(|control| control.drags = drags)
     }
 
     /// Constant forces on vertices: a list of `(vertex, force)`, N. Replaces the previous ones.
@@ -454,12 +448,7 @@ impl Simulation {
             .into_iter()
             .map(|(vertex, force)| PointForce { vertex, force })
             .collect();
-        self.update_control(|control, model| {
-            let vertices: Vec<u32> = forces.iter().map(|f| f.vertex).collect();
-            check_vertices(&vertices, model.vertex_count(), "point force")?;
-            control.point_forces = forces;
-            Ok(())
-        })
+        self.update_control(|control| control.point_forces = forces)
     }
 
     /// Wind of air `velocity` (m/s) with drag `coefficient` (N s/m^3); `None` stops it.
@@ -479,10 +468,7 @@ impl Simulation {
                 })
             }
         };
-        self.update_control(|control, _| {
-            control.wind = wind;
-            Ok(())
-        })
+        self.update_control(|control| control.wind = wind)
     }
 
     /// Forces on dynamic balls: a list of `(collider index, force)`, N, added to each ball's own.
@@ -491,23 +477,7 @@ impl Simulation {
             .into_iter()
             .map(|(collider, force)| BallPush { collider, force })
             .collect();
-        self.update_control(|control, model| {
-            let colliders = &model.collision.colliders;
-            for push in &pushes {
-                let dynamic = colliders
-                    .get(push.collider)
-                    .is_some_and(|c| c.dynamics.is_some());
-                if !dynamic {
-                    return Err(input(format!(
-                        "collider {} is not a dynamic ball (the scene has {} colliders)",
-                        push.collider,
-                        colliders.len()
-                    )));
-                }
-            }
-            control.ball_pushes = pushes;
-            Ok(())
-        })
+        self.update_control(|control| control.ball_pushes = pushes)
     }
 
     /// Changes dt (s), damping (kg/s), the stiffness scale or gravity (m/s^2) in place. A dt
@@ -822,16 +792,6 @@ fn indexed_forces<I>(forces: Vec<(I, [f64; 3])>, what: &str) -> PyResult<Vec<(I,
         .collect()
 }
 
-/// Every vertex in range of a mesh of `n` vertices.
-fn check_vertices(vertices: &[u32], n: usize, what: &str) -> PyResult<()> {
-    match vertices.iter().find(|v| **v as usize >= n) {
-        Some(v) => Err(input(format!(
-            "a {what} names vertex {v}, but the mesh has {n} vertices"
-        ))),
-        None => Ok(()),
-    }
-}
-
 impl Simulation {
     fn lock(&self) -> PyResult<MutexGuard<'_, Option<Holder>>> {
         self.holder
@@ -848,14 +808,12 @@ impl Simulation {
         f(holder.simulation())
     }
 
-    /// Changes the control through `f` (given it and the model, to check against) and sends it.
-    fn update_control(
-        &self,
-        f: impl FnOnce(&mut Control, &hooke_core::Model) -> PyResult<()>,
-    ) -> PyResult<()> {
+    /// Changes the control through `f`, checks it against the model and sends it.
+    fn update_control(&self, f: impl FnOnce(&mut Control)) -> PyResult<()> {
         self.with(|s| {
             let mut control = s.control().clone();
-            f(&mut control, s.model())?;
+            f(&mut control);
+            control.check(s.model()).map_err(input)?;
             s.set_control(control).or_raise()
         })
     }
