@@ -38,7 +38,9 @@
 //! # }
 //! ```
 
+pub mod live;
 mod offscreen;
+pub mod pointer;
 mod simulation;
 pub mod state_file;
 

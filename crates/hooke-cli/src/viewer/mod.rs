@@ -7,7 +7,6 @@
 
 mod panel;
 mod script;
-mod simulation;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -15,9 +14,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use hooke_gpu::GpuContext;
-use hooke_gpu::render::{Camera, Image, PickAt, Picker, RenderOptions, SceneRenderer};
+use hooke_gpu::render::{Camera, Image, Picker, RenderOptions, SceneRenderer};
 use hooke_gpu::wgpu;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -26,8 +25,9 @@ use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
 use crate::scene_loading::load_scene;
+use hooke::live::{Choice, LiveSimulation};
+use hooke::pointer::Pointer;
 use panel::PushDirection;
-use simulation::LiveSimulation;
 
 #[derive(Debug, Args)]
 pub struct ViewArgs {
@@ -116,20 +116,6 @@ impl ApplicationHandler for App {
     }
 }
 
-/// What the left mouse button is doing.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Gesture {
-    Idle,
-    /// Pressed; waiting for the GPU to say whether the cloth is under the cursor. Motion so far.
-    Picking(Vec2),
-    Orbiting,
-    Grabbing {
-        vertex: u32,
-        anchor: Vec3,
-    },
-    Panning,
-}
-
 struct Viewer {
     window: Arc<Window>,
     context: Arc<GpuContext>,
@@ -143,9 +129,7 @@ struct Viewer {
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
     simulation: LiveSimulation,
-    gesture: Gesture,
-    pick_requested: bool,
-    cursor: Vec2,
+    pointer: Pointer,
     frames: u64,
     frame_limit: Option<u64>,
     screenshot: Option<PathBuf>,
@@ -211,7 +195,8 @@ impl Viewer {
         let simulation = LiveSimulation::new(
             Arc::clone(&context),
             scene,
-            simulation::Choice::from_args(&args.solver)?,
+            Choice::from_solver(args.solver.choice(crate::solvers::Backend::Gpu))
+                .context("the viewer runs the cpu or gpu backend, not the reference")?,
         )?;
         let mut renderer = SceneRenderer::new(&context, simulation.model(), format)?;
         renderer.set_colliders(&context, &simulation.model().collision.colliders);
@@ -243,9 +228,7 @@ impl Viewer {
             egui_state,
             egui_renderer,
             simulation,
-            gesture: Gesture::Idle,
-            pick_requested: false,
-            cursor: Vec2::ZERO,
+            pointer: Pointer::new([size.width.max(1), size.height.max(1)]),
             frames: 0,
             frame_limit: args.frames,
             screenshot: args.screenshot.clone(),
@@ -270,13 +253,14 @@ impl Viewer {
                 self.config.width = size.width.max(1);
                 self.config.height = size.height.max(1);
                 self.surface.configure(&self.context.device, &self.config);
+                self.pointer.size = self.size();
             }
             WindowEvent::RedrawRequested => return self.frame(),
             _ if response.consumed => {}
             WindowEvent::CursorMoved { position, .. } => {
                 let cursor = Vec2::new(position.x as f32, position.y as f32);
-                self.pointer_moved(cursor - self.cursor);
-                self.cursor = cursor;
+                self.pointer
+                    .move_to(cursor, &mut self.camera, &mut self.simulation);
             }
             WindowEvent::MouseInput { state, button, .. } => self.mouse_button(*state, *button),
             WindowEvent::MouseWheel { delta, .. } => {
@@ -284,7 +268,7 @@ impl Viewer {
                     MouseScrollDelta::LineDelta(_, y) => *y,
                     MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
                 };
-                self.camera.zoom(0.9f32.powf(lines));
+                self.pointer.wheel(lines, &mut self.camera);
             }
             WindowEvent::KeyboardInput { event, .. }
                 if let Some(direction) = push_key(&event.logical_key) =>
@@ -317,61 +301,14 @@ impl Viewer {
         [self.config.width, self.config.height]
     }
 
-    fn cursor_ndc(&self) -> Vec2 {
-        let [w, h] = self.size();
-        Vec2::new(
-            2.0 * self.cursor.x / w as f32 - 1.0,
-            1.0 - 2.0 * self.cursor.y / h as f32,
-        )
-    }
-
     fn mouse_button(&mut self, state: ElementState, button: MouseButton) {
         match (button, state) {
-            (MouseButton::Left, ElementState::Pressed) => {
-                self.gesture = Gesture::Picking(Vec2::ZERO);
-                self.pick_requested = true;
-            }
+            (MouseButton::Left, ElementState::Pressed) => self.pointer.press_primary(),
             (MouseButton::Right | MouseButton::Middle, ElementState::Pressed) => {
-                self.gesture = Gesture::Panning
+                self.pointer.press_secondary()
             }
             (_, ElementState::Pressed) => {}
-            (_, ElementState::Released) => {
-                if matches!(self.gesture, Gesture::Grabbing { .. }) {
-                    self.simulation.grab = None;
-                    self.simulation.apply();
-                }
-                self.gesture = Gesture::Idle;
-            }
-        }
-    }
-
-    fn pointer_moved(&mut self, delta: Vec2) {
-        let radians = delta * 0.008;
-        match &mut self.gesture {
-            Gesture::Picking(pending) => *pending += delta,
-            Gesture::Orbiting => self.camera.orbit(radians),
-            Gesture::Panning => self.camera.pan(delta * 0.0015),
-            Gesture::Grabbing { vertex, anchor } => {
-                let (vertex, anchor) = (*vertex, *anchor);
-                self.drag_to(vertex, anchor);
-            }
-            Gesture::Idle => {}
-        }
-    }
-
-    /// Moves the grab target to where the cursor ray meets the plane through the grabbed point
-    /// facing the camera.
-    fn drag_to(&mut self, vertex: u32, anchor: Vec3) {
-        let [w, h] = self.size();
-        let (origin, direction) = self
-            .camera
-            .ray(self.cursor_ndc(), w as f32 / h.max(1) as f32);
-        let normal = (self.camera.target - self.camera.eye()).normalize_or(Vec3::NEG_Z);
-        let denominator = direction.dot(normal);
-        if denominator.abs() > 1e-6 {
-            let t = (anchor - origin).dot(normal) / denominator;
-            self.simulation.grab = Some((vertex, origin + direction * t));
-            self.simulation.apply();
+            (_, ElementState::Released) => self.pointer.release(&mut self.simulation),
         }
     }
 
@@ -380,10 +317,7 @@ impl Viewer {
         let Some(mut script) = self.drag_script.take() else {
             return;
         };
-        let holding = match self.gesture {
-            Gesture::Grabbing { vertex, .. } => Some(vertex),
-            _ => None,
-        };
+        let holding = self.pointer.holding();
         let model = self.simulation.model();
         let centroid = model.initial_positions.iter().sum::<glam::DVec3>()
             / model.vertex_count().max(1) as f64;
@@ -398,12 +332,13 @@ impl Viewer {
         let target = script::project(self.camera.view_projection(aspect), middle.as_vec3(), size);
         match script.next(self.frames, holding, target) {
             script::Action::Press(at) => {
-                self.cursor = at;
+                self.pointer.cursor = at;
                 self.mouse_button(ElementState::Pressed, MouseButton::Left);
             }
             script::Action::Move(delta) => {
-                self.cursor += delta;
-                self.pointer_moved(delta);
+                let cursor = self.pointer.cursor + delta;
+                self.pointer
+                    .move_to(cursor, &mut self.camera, &mut self.simulation);
             }
             script::Action::Tune => {
                 // Three panel edits, each applied on its own as the sliders do.
@@ -428,23 +363,9 @@ impl Viewer {
         self.frame_seconds =
             0.9 * self.frame_seconds + 0.1 * now.duration_since(self.last_frame).as_secs_f64();
         self.last_frame = now;
-        if let Some(answer) = self.picker.poll(&self.context)
-            && let Gesture::Picking(pending) = self.gesture
-        {
-            self.gesture = match answer {
-                Some(hit) => {
-                    self.simulation.grab = Some((hit.vertex, hit.position));
-                    self.simulation.apply();
-                    Gesture::Grabbing {
-                        vertex: hit.vertex,
-                        anchor: hit.position,
-                    }
-                }
-                None => {
-                    self.camera.orbit(pending * 0.008);
-                    Gesture::Orbiting
-                }
-            };
+        if let Some(answer) = self.picker.poll(&self.context) {
+            self.pointer
+                .picked(answer, &mut self.camera, &mut self.simulation);
         }
         let surface_texture = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
@@ -471,19 +392,13 @@ impl Viewer {
             .context("the viewer's solver draws from a GPU buffer")?;
         let size = self.size();
         let mut picking = false;
-        if self.pick_requested {
-            picking = self.picker.encode(
-                &self.context,
-                &mut encoder,
-                positions,
-                &self.camera,
-                PickAt {
-                    cursor: self.cursor_ndc(),
-                    size,
-                    radius_pixels: 12.0,
-                },
-            );
-            self.pick_requested = !picking;
+        if let Some(at) = self.pointer.pick_request() {
+            picking = self
+                .picker
+                .encode(&self.context, &mut encoder, positions, &self.camera, at);
+            if picking {
+                self.pointer.pick_recorded();
+            }
         }
         self.options.wind = self.simulation.wind().map(|w| w.velocity.as_vec3());
         self.renderer

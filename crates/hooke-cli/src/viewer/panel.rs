@@ -3,7 +3,7 @@
 use hooke_core::selfcollide;
 use hooke_gpu::render::{Camera, RenderOptions, SceneBounds};
 
-use super::simulation::LiveSimulation;
+use hooke::live::LiveSimulation;
 
 pub fn show(
     root: &mut egui::Ui,

@@ -1,5 +1,5 @@
-//! What the viewer simulates and how the panel changes it: the solver choice, the controls, the
-//! grabbed vertex, and status checks that never make a frame wait.
+//! A simulation driven live by a front end (the viewer's window, the browser page): the solver
+//! choice, the controls, the grabbed vertex, and status checks that never make a frame wait.
 //!
 //! The panel's values become a [`Control`] (drag, wind, pushes), a [`Material`] (stiffness,
 //! damping, dt, gravity) and a self-collision set-up; [`LiveSimulation::apply`] sends only what
@@ -9,7 +9,6 @@
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
-use hooke::{Simulation, SolverChoice};
 use hooke_core::collide::Collider;
 use hooke_core::scene::Scene;
 use hooke_core::selfcollide::SelfCollision;
@@ -19,6 +18,8 @@ use hooke_gpu::render::AsyncReadback;
 use hooke_gpu::wgpu;
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod};
 
+use crate::{EngineError, Simulation, SolverChoice};
+
 /// Which solver runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Choice {
@@ -27,16 +28,13 @@ pub enum Choice {
 }
 
 impl Choice {
-    /// The solver the command line asks for.
-    pub fn from_args(args: &crate::solvers::SolverArgs) -> anyhow::Result<Self> {
-        use crate::solvers::Backend;
-        Ok(match args.choice(Backend::Gpu) {
-            SolverChoice::Reference => {
-                anyhow::bail!("the viewer runs the cpu or gpu backend, not the reference")
-            }
-            SolverChoice::Cpu(options) => Choice::Cpu(options.method),
-            SolverChoice::Gpu(method) => Choice::Gpu(method),
-        })
+    /// The live choice for a solver; the reference is not one (it has no GPU buffer to draw).
+    pub fn from_solver(choice: SolverChoice) -> Option<Self> {
+        match choice {
+            SolverChoice::Reference => None,
+            SolverChoice::Cpu(options) => Some(Choice::Cpu(options.method)),
+            SolverChoice::Gpu(method) => Some(Choice::Gpu(method)),
+        }
     }
 
     pub fn label(self) -> String {
@@ -46,7 +44,7 @@ impl Choice {
         }
     }
 
-    fn solver(self) -> SolverChoice {
+    pub fn solver(self) -> SolverChoice {
         match self {
             Self::Gpu(method) => SolverChoice::Gpu(method),
             Self::Cpu(method) => SolverChoice::Cpu(CpuOptions {
@@ -57,9 +55,27 @@ impl Choice {
     }
 }
 
+/// The GPU methods `context`'s adapter can run (float atomics and float32 blending are
+/// optional features; WebGPU has no float atomics at all).
+pub fn gpu_methods(context: &GpuContext) -> Vec<GpuMethod> {
+    GpuMethod::all()
+        .into_iter()
+        .filter(|m| match m {
+            GpuMethod::Scatter(Accumulation::AtomicF32) => {
+                context.has(wgpu::Features::SHADER_FLOAT32_ATOMIC)
+            }
+            GpuMethod::Scatter(Accumulation::BlendR32f) => {
+                context.has(wgpu::Features::FLOAT32_BLENDABLE)
+            }
+            _ => true,
+        })
+        .collect()
+}
+
 /// Steps between non-blocking status checks of the GPU solver.
 const STATUS_EVERY: u64 = 30;
 
+#[derive(Debug)]
 pub struct LiveSimulation {
     context: Arc<GpuContext>,
     scene: Scene,
@@ -94,17 +110,13 @@ pub struct LiveSimulation {
 }
 
 impl LiveSimulation {
-    pub fn new(context: Arc<GpuContext>, scene: Scene, choice: Choice) -> anyhow::Result<Self> {
-        let gpu_methods = GpuMethod::all().into_iter().filter(|m| match m {
-            GpuMethod::Scatter(Accumulation::AtomicF32) => {
-                context.has(wgpu::Features::SHADER_FLOAT32_ATOMIC)
-            }
-            GpuMethod::Scatter(Accumulation::BlendR32f) => {
-                context.has(wgpu::Features::FLOAT32_BLENDABLE)
-            }
-            _ => true,
-        });
-        let choices: Vec<Choice> = gpu_methods
+    pub fn new(
+        context: Arc<GpuContext>,
+        scene: Scene,
+        choice: Choice,
+    ) -> Result<Self, EngineError> {
+        let choices: Vec<Choice> = gpu_methods(&context)
+            .into_iter()
             .map(Choice::Gpu)
             .chain(Method::ALL.map(Choice::Cpu))
             .collect();
@@ -279,6 +291,16 @@ impl LiveSimulation {
                 self.message = None;
             }
             Err(error) => self.message = Some(format!("{}: {error:#}", choice.label())),
+        }
+    }
+
+    /// Starts the scene again on another solver: where the state cannot be read back while the
+    /// page waits (a browser), this is how the method changes.
+    pub fn restart_on(&mut self, choice: Choice) {
+        let previous = std::mem::replace(&mut self.choice, choice);
+        self.reset();
+        if self.message.is_some() {
+            self.choice = previous;
         }
     }
 
