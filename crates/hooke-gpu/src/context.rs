@@ -101,14 +101,37 @@ impl GpuContext {
         Ok((context, surface))
     }
 
+    /// Opens an adapter that can present to a web page's canvas, and the surface for it. In a
+    /// browser nothing may block, so this one is async.
+    #[cfg(target_arch = "wasm32")]
+    pub async fn for_canvas(
+        canvas: wgpu::web_sys::HtmlCanvasElement,
+    ) -> Result<(Arc<Self>, wgpu::Surface<'static>), GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::BROWSER_WEBGPU,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let surface = instance
+            .create_surface(wgpu::SurfaceTarget::Canvas(canvas))
+            .map_err(|e| GpuError::Device(format!("cannot draw into the canvas: {e}")))?;
+        let context = Self::open_async(&instance, Some(&surface)).await?;
+        Ok((context, surface))
+    }
+
     fn open(
         instance: &wgpu::Instance,
         surface: Option<&wgpu::Surface<'_>>,
     ) -> Result<Arc<Self>, GpuError> {
-        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-            instance, surface,
-        ))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        pollster::block_on(Self::open_async(instance, surface))
+    }
+
+    pub async fn open_async(
+        instance: &wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Arc<Self>, GpuError> {
+        let adapter = wgpu::util::initialize_adapter_from_env_or_default(instance, surface)
+            .await
+            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
         let info = adapter.get_info();
         let features = adapter.features() & OPTIONAL_FEATURES;
         let available = adapter.limits();
@@ -118,13 +141,15 @@ impl GpuContext {
             max_compute_workgroups_per_dimension: available.max_compute_workgroups_per_dimension,
             ..wgpu::Limits::default()
         };
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("hooke"),
-            required_features: features,
-            required_limits: limits,
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::Device(e.to_string()))?;
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("hooke"),
+                required_features: features,
+                required_limits: limits,
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::Device(e.to_string()))?;
         // wgpu's default handler panics; keep errors as values and report them on the next call.
         let errors = Arc::new(Mutex::new(Vec::new()));
         let sink = Arc::clone(&errors);

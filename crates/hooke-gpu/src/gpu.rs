@@ -80,23 +80,45 @@ pub fn compute_pipeline(
     entry_point: &str,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
     context.note_pipeline();
-    let scope = context
-        .device
-        .push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = shader_module(context, label, source);
-    let pipeline = context
-        .device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: None,
-            module: &module,
-            entry_point: Some(entry_point),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-    match pollster::block_on(scope.pop()) {
-        Some(error) => Err(GpuError::Validation(format!("{label}: {error}"))),
-        None => Ok(pipeline),
+    validated(context, label, || {
+        let module = shader_module(context, label, source);
+        context
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry_point),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    })
+}
+
+/// Runs `create` under a validation error scope and returns its error, named by `what`, as a
+/// value. A browser cannot wait for the scope (the answer comes from its event loop), so on
+/// wasm errors go to the device's uncaptured-error handler instead and come back from the next
+/// [`GpuContext::take_error`], which the page checks every frame.
+pub fn validated<T>(
+    context: &GpuContext,
+    what: &str,
+    create: impl FnOnce() -> T,
+) -> Result<T, GpuError> {
+    #[cfg(not(target_arch = "wasm32"))]
+    {
+        let scope = context
+            .device
+            .push_error_scope(wgpu::ErrorFilter::Validation);
+        let created = create();
+        match pollster::block_on(scope.pop()) {
+            Some(error) => Err(GpuError::Validation(format!("{what}: {error}"))),
+            None => Ok(created),
+        }
+    }
+    #[cfg(target_arch = "wasm32")]
+    {
+        let _ = (context, what);
+        Ok(create())
     }
 }
 
@@ -107,17 +129,11 @@ pub fn render_pipeline(
     descriptor: &wgpu::RenderPipelineDescriptor<'_>,
 ) -> Result<wgpu::RenderPipeline, GpuError> {
     context.note_pipeline();
-    let scope = context
-        .device
-        .push_error_scope(wgpu::ErrorFilter::Validation);
-    let pipeline = context.device.create_render_pipeline(descriptor);
-    match pollster::block_on(scope.pop()) {
-        Some(error) => Err(GpuError::Validation(format!(
-            "{}: {error}",
-            descriptor.label.unwrap_or("render pipeline")
-        ))),
-        None => Ok(pipeline),
-    }
+    validated(
+        context,
+        descriptor.label.unwrap_or("render pipeline"),
+        || context.device.create_render_pipeline(descriptor),
+    )
 }
 
 /// A shader module from WGSL source.

@@ -97,6 +97,17 @@ impl GpuMethod {
         }
     }
 
+    /// The method of this [`GpuMethod::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name.split_once('/') {
+            None if name == "gather" => Some(Self::Gather),
+            Some(("scatter", accumulation)) => {
+                Accumulation::from_name(accumulation).map(Self::Scatter)
+            }
+            _ => None,
+        }
+    }
+
     pub fn is_deterministic(self) -> bool {
         match self {
             Self::Gather => true,
@@ -128,5 +139,27 @@ impl GpuMemory {
     /// What the paper's Table 1 counts: positions, topology and per-step buffers.
     pub fn table_1(&self) -> u64 {
         self.positions + self.topology + self.per_step
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_is_found_by_its_name() {
+        for method in GpuMethod::all() {
+            assert_eq!(GpuMethod::from_name(&method.name()), Some(method));
+        }
+        for bad in [
+            "",
+            "scatter",
+            "scatter/",
+            "gather/incidence",
+            "scatter/nope",
+            "nope",
+        ] {
+            assert_eq!(GpuMethod::from_name(bad), None, "{bad}");
+        }
     }
 }

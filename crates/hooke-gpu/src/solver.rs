@@ -37,12 +37,13 @@ use crate::model::{GpuModel, vec4s};
 use crate::state::GpuState;
 use crate::step::{Fused, PassSink, Phase, TIMESTAMP_SLOTS, Timestamped, WallClock, add_phase};
 
-/// The force pass and, for scatter, its accumulation.
+/// The force pass and, for scatter, its accumulation (boxed: on wasm, wgpu's handles make it
+/// several times the size of the gather variant).
 enum Forces {
     Gather(ForceGather),
     Scatter {
         springs: ForceSprings,
-        accumulation: Accumulator,
+        accumulation: Box<Accumulator>,
     },
 }
 
@@ -161,7 +162,7 @@ impl GpuSolver {
                 };
                 Forces::Scatter {
                     springs,
-                    accumulation,
+                    accumulation: Box::new(accumulation),
                 }
             }
         };
@@ -239,7 +240,7 @@ impl GpuSolver {
                 springs,
                 accumulation,
             } => {
-                let (topology, scratch) = match accumulation {
+                let (topology, scratch) = match accumulation.as_ref() {
                     Accumulator::AtomicF32(_) => (0, 0),
                     Accumulator::Fixed(a) => (0, a.bytes()),
                     Accumulator::Incidence(a) => (a.bytes(), 0),
@@ -289,7 +290,7 @@ impl GpuSolver {
                     springs.kernel.encode(e, current, t);
                 })?;
                 let acc = Phase::Accumulation;
-                match accumulation {
+                match accumulation.as_ref() {
                     Accumulator::AtomicF32(a) => {
                         sink.pass(acc, &mut |e, t| a.encode(e, &self.forces, t))?;
                     }

@@ -171,6 +171,10 @@ impl LiveSimulation {
         })
     }
 
+    pub fn scene_name(&self) -> &str {
+        &self.scene.name
+    }
+
     pub fn model(&self) -> &Model {
         self.engine.model()
     }
@@ -348,6 +352,12 @@ impl LiveSimulation {
             self.steps_per_frame
         };
         self.step_once = false;
+        self.encode_steps(encoder, steps);
+    }
+
+    /// Records `steps` steps into `encoder` whatever the pause state (a scripted run's exact
+    /// count), with the status check every [`STATUS_EVERY`] steps.
+    pub fn encode_steps(&mut self, encoder: &mut wgpu::CommandEncoder, steps: u32) {
         if let Err(error) = self.engine.encode_frame(encoder, steps) {
             self.message = Some(error.to_string());
             self.paused = true;

@@ -166,3 +166,80 @@ impl Pointer {
         }
     }
 }
+
+/// Directions to push a ball, relative to the view (horizontal ones) or up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PushDirection {
+    Left,
+    Right,
+    Away,
+    Toward,
+    Up,
+}
+
+impl PushDirection {
+    pub const ALL: [Self; 5] = [Self::Left, Self::Right, Self::Away, Self::Toward, Self::Up];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Left => "left",
+            Self::Right => "right",
+            Self::Away => "away",
+            Self::Toward => "toward",
+            Self::Up => "up",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|d| d.name() == name)
+    }
+
+    /// The world direction for the camera's current heading.
+    pub fn relative_to(self, camera: &Camera) -> glam::DVec3 {
+        let (sin_yaw, cos_yaw) = f64::from(camera.yaw).sin_cos();
+        // The camera sits at yaw around the target: away from it is -(sin, 0, cos).
+        let away = glam::DVec3::new(-sin_yaw, 0.0, -cos_yaw);
+        let right = glam::DVec3::new(cos_yaw, 0.0, -sin_yaw);
+        match self {
+            Self::Left => -right,
+            Self::Right => right,
+            Self::Away => away,
+            Self::Toward => -away,
+            Self::Up => glam::DVec3::Y,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hooke_gpu::render::SceneBounds;
+
+    #[test]
+    fn pushes_follow_the_view() {
+        let mut camera = Camera::framing(&SceneBounds {
+            min: glam::Vec3::splat(-1.0),
+            max: glam::Vec3::splat(1.0),
+            ground_height: 0.0,
+        });
+        // Yaw 0: the camera sits on +z looking toward -z, with +x to its right.
+        camera.yaw = 0.0;
+        let close = |a: glam::DVec3, b: glam::DVec3| (a - b).length() < 1e-12;
+        assert!(close(
+            PushDirection::Away.relative_to(&camera),
+            -glam::DVec3::Z
+        ));
+        assert!(close(
+            PushDirection::Right.relative_to(&camera),
+            glam::DVec3::X
+        ));
+        assert!(close(
+            PushDirection::Up.relative_to(&camera),
+            glam::DVec3::Y
+        ));
+        // A quarter turn: the camera on +x looking toward -x, with -z to its right.
+        camera.yaw = std::f32::consts::FRAC_PI_2;
+        assert!((PushDirection::Away.relative_to(&camera) + glam::DVec3::X).length() < 1e-6);
+        assert!((PushDirection::Right.relative_to(&camera) + glam::DVec3::Z).length() < 1e-6);
+    }
+}

@@ -27,7 +27,7 @@ use winit::window::{Window, WindowId};
 use crate::scene_loading::load_scene;
 use hooke::live::{Choice, LiveSimulation};
 use hooke::pointer::Pointer;
-use panel::PushDirection;
+use hooke::pointer::PushDirection;
 
 #[derive(Debug, Args)]
 pub struct ViewArgs {
@@ -328,8 +328,7 @@ impl Viewer {
             .copied()
             .unwrap_or(centroid);
         let size = self.size();
-        let aspect = size[0] as f32 / size[1].max(1) as f32;
-        let target = script::project(self.camera.view_projection(aspect), middle.as_vec3(), size);
+        let target = self.camera.to_pixels(middle.as_vec3(), size);
         match script.next(self.frames, holding, target) {
             script::Action::Press(at) => {
                 self.pointer.cursor = at;

@@ -4,7 +4,7 @@
 //! changes the stiffness, the damping and dt one after another, and releases.
 
 use clap::ValueEnum;
-use glam::{Vec2, Vec4};
+use glam::Vec2;
 
 /// Frames of cursor motion while the cloth is held.
 pub const DRAG_MOVES: u32 = 30;
@@ -81,14 +81,4 @@ impl DragScript {
             None => "scripted drag: no vertex was grabbed".to_owned(),
         }
     }
-}
-
-/// The pixel where world point `p` appears.
-pub fn project(view_projection: glam::Mat4, p: glam::Vec3, size: [u32; 2]) -> Vec2 {
-    let clip = view_projection * Vec4::new(p.x, p.y, p.z, 1.0);
-    let ndc = clip.truncate() / clip.w;
-    Vec2::new(
-        (ndc.x + 1.0) * 0.5 * size[0] as f32,
-        (1.0 - ndc.y) * 0.5 * size[1] as f32,
-    )
 }

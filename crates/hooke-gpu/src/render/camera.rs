@@ -73,6 +73,16 @@ impl Camera {
         self.distance = (self.distance * factor).clamp(1e-3, 1e4);
     }
 
+    /// The pixel (from the top left of an image of `size`) where `point` is drawn.
+    pub fn to_pixels(&self, point: Vec3, size: [u32; 2]) -> Vec2 {
+        let aspect = size[0] as f32 / size[1].max(1) as f32;
+        let ndc = self.view_projection(aspect).project_point3(point);
+        Vec2::new(
+            (ndc.x + 1.0) * 0.5 * size[0] as f32,
+            (1.0 - ndc.y) * 0.5 * size[1] as f32,
+        )
+    }
+
     /// The world-space ray through a point given in normalised device coordinates.
     pub fn ray(&self, ndc: Vec2, aspect: f32) -> (Vec3, Vec3) {
         let inverse = self.view_projection(aspect).inverse();
@@ -98,5 +108,20 @@ mod tests {
         let (origin, direction) = camera.ray(Vec2::ZERO, 1.5);
         let to_target = (camera.target - origin).normalize();
         assert!(direction.dot(to_target) > 0.9999);
+    }
+
+    #[test]
+    fn the_target_is_drawn_at_the_image_centre() {
+        let camera = Camera {
+            target: Vec3::new(1.0, 2.0, 3.0),
+            distance: 4.0,
+            yaw: 0.3,
+            pitch: 0.4,
+            fov_y: 0.8,
+        };
+        let pixel = camera.to_pixels(camera.target, [300, 200]);
+        assert!((pixel - Vec2::new(150.0, 100.0)).length() < 1e-3, "{pixel}");
+        let above = camera.to_pixels(camera.target + Vec3::Y, [300, 200]);
+        assert!(above.y < 100.0, "up is drawn higher: {above}");
     }
 }

@@ -230,48 +230,43 @@ impl SceneRenderer {
                     },
                 )
             };
-        let scope = context
-            .device
-            .push_error_scope(wgpu::ErrorFilter::Validation);
         let list = wgpu::PrimitiveTopology::TriangleList;
         let lines = wgpu::PrimitiveTopology::LineList;
-        let renderer = Self {
-            normals_pipeline: compute_pipeline(context, "normals", NORMALS, "main")?,
-            cloth: pipeline("cloth", "vs_cloth", "fs_cloth", list)?,
-            ground: pipeline("ground", "vs_ground", "fs_ground", list)?,
-            springs: pipeline("springs", "vs_springs", "fs_flat", lines)?,
-            pins: pipeline("pins", "vs_pins", "fs_flat", list)?,
-            wind: pipeline("wind arrows", "vs_wind", "fs_flat", lines)?,
-            sphere: pipeline("collider spheres", "vs_sphere", "fs_sphere", list)?,
-            sphere_mesh: storage(context, "unit sphere", &unit_sphere, none),
-            sphere_mesh_vertices: unit_sphere.len() as u32,
-            spheres: storage(context, "collider spheres", &[[0.0f32; 4]], none),
-            sphere_count: 0,
-            sphere_forces: storage(context, "ball forces", &[[0.0f32; 4]], none),
-            ball_force: pipeline("ball forces", "vs_ball_force", "fs_flat", lines)?,
-            capsule: pipeline("collider capsules", "vs_capsule", "fs_sphere", list)?,
-            capsules: storage(context, "collider capsules", &[[0.0f32; 4]; 2], none),
-            capsule_count: 0,
-            frame,
-            counts,
-            triangles: storage(context, "render triangles", &triangles, none),
-            vertex_triangles: storage(context, "render vertex triangles", &lists, none),
-            uvs: storage(context, "texture coordinates", &uvs, none),
-            rest_edges: storage(context, "rest edge lengths", &rest_edges, none),
-            spring_ends: storage(context, "spring ends", &model.spring_ends, none),
-            pinned: storage(context, "pinned vertices", &pinned, none),
-            normals: gpu::zeroed(context, "normals", 16 * n as u64, none),
-            vertex_count: n as u32,
-            triangle_count: model.triangles.len() as u32,
-            spring_count: model.spring_count() as u32,
-            pin_count: pinned.len() as u32,
-            bounds,
-            depth: None,
-        };
-        if let Some(error) = pollster::block_on(scope.pop()) {
-            return Err(crate::GpuError::Validation(format!("renderer: {error}")));
-        }
-        Ok(renderer)
+        crate::gpu::validated(context, "renderer", || -> Result<Self, crate::GpuError> {
+            Ok(Self {
+                normals_pipeline: compute_pipeline(context, "normals", NORMALS, "main")?,
+                cloth: pipeline("cloth", "vs_cloth", "fs_cloth", list)?,
+                ground: pipeline("ground", "vs_ground", "fs_ground", list)?,
+                springs: pipeline("springs", "vs_springs", "fs_flat", lines)?,
+                pins: pipeline("pins", "vs_pins", "fs_flat", list)?,
+                wind: pipeline("wind arrows", "vs_wind", "fs_flat", lines)?,
+                sphere: pipeline("collider spheres", "vs_sphere", "fs_sphere", list)?,
+                sphere_mesh: storage(context, "unit sphere", &unit_sphere, none),
+                sphere_mesh_vertices: unit_sphere.len() as u32,
+                spheres: storage(context, "collider spheres", &[[0.0f32; 4]], none),
+                sphere_count: 0,
+                sphere_forces: storage(context, "ball forces", &[[0.0f32; 4]], none),
+                ball_force: pipeline("ball forces", "vs_ball_force", "fs_flat", lines)?,
+                capsule: pipeline("collider capsules", "vs_capsule", "fs_sphere", list)?,
+                capsules: storage(context, "collider capsules", &[[0.0f32; 4]; 2], none),
+                capsule_count: 0,
+                frame,
+                counts,
+                triangles: storage(context, "render triangles", &triangles, none),
+                vertex_triangles: storage(context, "render vertex triangles", &lists, none),
+                uvs: storage(context, "texture coordinates", &uvs, none),
+                rest_edges: storage(context, "rest edge lengths", &rest_edges, none),
+                spring_ends: storage(context, "spring ends", &model.spring_ends, none),
+                pinned: storage(context, "pinned vertices", &pinned, none),
+                normals: gpu::zeroed(context, "normals", 16 * n as u64, none),
+                vertex_count: n as u32,
+                triangle_count: model.triangles.len() as u32,
+                spring_count: model.spring_count() as u32,
+                pin_count: pinned.len() as u32,
+                bounds,
+                depth: None,
+            })
+        })?
     }
 
     pub fn bounds(&self) -> SceneBounds {
