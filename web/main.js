@@ -198,8 +198,8 @@ async function main() {
   if (!navigator.gpu) {
     throw new Error(
       "This browser has no WebGPU, which hooke's page needs to simulate on the GPU. " +
-        "Use a current Chrome, Edge or Safari, or Firefox 141+ on Windows; on Linux, Chrome " +
-        "with chrome://flags/#enable-unsafe-webgpu. The same simulation runs natively: " +
+        "Use a current Chrome, Edge or Safari, or Firefox 141+ on Windows; on Linux, Chrome may need " +
+        "chrome://flags/#enable-unsafe-webgpu. The same simulation runs natively: " +
         "`hooke view scenes/cloth-pinned.toml`.",
     );
   }

@@ -67,14 +67,16 @@ async function openPage(query, size = { width: 1200, height: 720 }) {
   return { page, errors, close: () => context.close() };
 }
 
-const stats = (page) => page.evaluate(() => JSON.parse(window.hooke.page.stats()));
+// Null while the page switches scenes (the old simulation is gone, the new one not yet there).
+const stats = (page) =>
+  page.evaluate(() => (window.hooke.page ? JSON.parse(window.hooke.page.stats()) : null));
 
 /** Waits until `predicate(stats)` holds, checking once per animation frame or so. */
 async function waitFor(page, predicate, what, timeoutMs = 60_000) {
   const start = Date.now();
   for (;;) {
     const s = await stats(page);
-    if (predicate(s)) return s;
+    if (s && predicate(s)) return s;
     assert.ok(Date.now() - start < timeoutMs, `timed out waiting for ${what}: ${JSON.stringify(s)}`);
     await page.waitForTimeout(50);
   }
@@ -149,6 +151,24 @@ describe("hooke's page in headless Chromium (WebGPU on SwiftShader)", () => {
       assert.equal(running.wind.enabled, true, "the scene's wind is on");
       assert.match(await page.textContent("#stats"), /fps .* steps\/s/);
       console.log(`adapter: ${adapter}; methods: ${methods.join(", ")}`);
+
+      // The controls: another method restarts the scene on it; another scene replaces it.
+      await page.selectOption("#method", "scatter/atomic-fixed");
+      await waitFor(
+        page,
+        (s) => s.method === "scatter/atomic-fixed" && s.steps >= 20,
+        "the method switch",
+      );
+      await page.selectOption("#scene", "self-collision");
+      const folded = await waitFor(
+        page,
+        (s) => s.scene === "self-collision" && s.steps >= 20,
+        "the scene switch",
+      );
+      assert.equal(folded.method, "scatter/atomic-fixed");
+      assert.equal(folded.self_collision, true, "Fig. 3's self-collision is on");
+      assert.equal(await page.isChecked("#self-collision"), true);
+      assert.equal(await page.isHidden("#balls"), true, "no ball to push in Fig. 3");
       assert.deepEqual(errors, []);
     } finally {
       await close();
