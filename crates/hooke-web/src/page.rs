@@ -219,16 +219,22 @@ impl Page {
     pub fn set_method(&self, name: &str) -> Result<(), JsError> {
         let mut inner = self.inner.borrow_mut();
         let choice = choice_named(&inner.context, name).map_err(js_error)?;
+        let paused = inner.simulation.paused;
         inner.simulation.restart_on(choice);
+        inner.simulation.paused = paused;
         match inner.simulation.message.take() {
             Some(message) => Err(js_error(message)),
             None => Ok(()),
         }
     }
 
-    /// Starts the scene again with the controls as they are.
+    /// Starts the scene again with the controls as they are, paused if it was (the page's
+    /// pause button keeps its state).
     pub fn reset(&self) {
-        self.inner.borrow_mut().simulation.reset();
+        let simulation = &mut self.inner.borrow_mut().simulation;
+        let paused = simulation.paused;
+        simulation.reset();
+        simulation.paused = paused;
     }
 
     /// The canvas's drawing buffer changed size (pixels).
