@@ -16,6 +16,9 @@ import httpServer from "http-server";
 import { chromium } from "playwright-core";
 import { PNG } from "pngjs";
 
+// http-server 14 uses an API node deprecated; the warning says nothing about the page.
+process.noDeprecation = true;
+
 const webRoot = dirname(dirname(fileURLToPath(import.meta.url)));
 const repoRoot = dirname(webRoot);
 const hookeBin = process.env.HOOKE_BIN ?? join(repoRoot, "target/debug/hooke");

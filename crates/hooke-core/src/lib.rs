@@ -6,6 +6,7 @@ pub mod collide;
 mod control;
 pub mod diagnostics;
 pub mod forces;
+pub mod frames;
 pub mod input_file;
 mod material;
 pub mod mesh;

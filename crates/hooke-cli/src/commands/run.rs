@@ -1,4 +1,5 @@
-//! `hooke run`: simulate a scene and write frames as binary PLY.
+//! `hooke run`: simulate a scene and write frames (binary PLY, an OBJ sequence or a Blender
+//! point cache).
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -10,7 +11,7 @@ use hooke::state_file::{load_state, save_state};
 use hooke_core::State;
 use hooke_core::collide::Shape;
 use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
-use hooke_core::mesh::write_ply_frame;
+use hooke_core::frames::{FrameFormat, FrameWriter};
 use hooke_core::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -36,6 +37,11 @@ pub struct RunArgs {
     /// Write only the final state, no frames.
     #[arg(long)]
     pub no_frames: bool,
+    /// Frame files: `ply` (frame-NNNNNNN.ply, binary), `obj` (frame-NNNNNNN.obj with normals,
+    /// an OBJ sequence) or `pc2` (frames.pc2, Blender's point cache for the Mesh Cache
+    /// modifier, written when the run ends). Vertex order is always the mesh file's.
+    #[arg(long, default_value = "ply", value_parser = parse_frame_format)]
+    pub output_format: FrameFormat,
     /// Run even if dt exceeds the stability bound.
     #[arg(long)]
     pub allow_unstable: bool,
@@ -114,17 +120,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     );
 
     let progress = progress_bar(steps);
-    let mut frames_written = 0usize;
-    let write_frame = |state: &State, step: u64, written: &mut usize| -> anyhow::Result<()> {
-        if !args.no_frames {
-            let path = output.join(format!("frame-{step:07}.ply"));
-            write_ply_frame(&path, &state.positions, &scene.model.triangles)
-                .with_context(|| format!("writing {}", path.display()))?;
-            *written += 1;
-        }
-        Ok(())
-    };
-    write_frame(&solver.state()?, first_step, &mut frames_written)?;
+    let mut frames = FrameWriter::new(&output, args.output_format, &scene.model.triangles);
+    if !args.no_frames {
+        write_frame(&mut frames, &solver.state()?, first_step)?;
+    }
 
     let mut solver_time = Duration::ZERO;
     let mut step = 0u64;
@@ -135,18 +134,23 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         let start = Instant::now();
         let result = solver.step(batch as u32);
         solver_time += start.elapsed();
-        result.map_err(|error| stopped(error, &output, frames_written))?;
         step += batch;
         progress.set_position(step);
-        let state = solver
-            .state()
-            .map_err(|error| stopped(error, &output, frames_written))?;
-        check_health(&scene.model, &state.positions, solver.steps_taken())
-            .map_err(|error| stopped(error, &output, frames_written))?;
-        if step.is_multiple_of(frame_every) || step == steps {
-            write_frame(&state, first_step + step, &mut frames_written)?;
+        let state = match result.and_then(|()| {
+            let state = solver.state()?;
+            check_health(&scene.model, &state.positions, solver.steps_taken())?;
+            Ok(state)
+        }) {
+            Ok(state) => state,
+            Err(error) => return Err(stopped(error, &output, frames)),
+        };
+        if !args.no_frames && (step.is_multiple_of(frame_every) || step == steps) {
+            write_frame(&mut frames, &state, first_step + step)?;
         }
     }
+    let frames_written = frames
+        .finish()
+        .with_context(|| format!("finishing the frames in {}", output.display()))?;
     progress.finish_and_clear();
 
     let snapshot = solver.snapshot()?;
@@ -173,11 +177,30 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn stopped(error: hooke_core::SimError, output: &Path, frames: usize) -> anyhow::Error {
+fn write_frame(frames: &mut FrameWriter, state: &State, step: u64) -> anyhow::Result<()> {
+    frames
+        .write(step, &state.positions)
+        .with_context(|| format!("writing {}", frames.path(step).display()))
+}
+
+/// The error of a simulation that stopped, after completing the frames written before it (a
+/// `.pc2` file keeps them).
+fn stopped(error: hooke_core::SimError, output: &Path, frames: FrameWriter) -> anyhow::Error {
+    let kept = match frames.finish() {
+        Ok(count) => format!("frames written before: {count}"),
+        Err(e) => format!("the frames could not be completed: {e}"),
+    };
     anyhow::anyhow!(
-        "{error}\nthe simulation stopped; frames written before: {frames}, in {}",
+        "{error}\nthe simulation stopped; {kept}, in {}",
         output.display()
     )
+}
+
+fn parse_frame_format(name: &str) -> Result<FrameFormat, String> {
+    FrameFormat::from_name(name).ok_or_else(|| {
+        let names: Vec<_> = FrameFormat::ALL.iter().map(|f| f.name()).collect();
+        format!("expected one of {}", names.join(", "))
+    })
 }
 
 fn progress_bar(steps: u64) -> ProgressBar {

@@ -1,0 +1,270 @@
+//! Where a run's frames go: binary PLY or OBJ files, one per frame, or one Blender point cache
+//! (`.pc2`) streamed as the frames come. Every file goes through [`crate::atomic_file`]: a
+//! reader, or a run killed midway, never sees one half written.
+
+use std::io::{Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use crate::atomic_file::{AtomicFile, write_atomically};
+use crate::mesh::write_ply_frame;
+
+/// The formats `hooke run --output-format` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameFormat {
+    /// `frame-NNNNNNN.ply`: binary PLY, float32 positions and the faces.
+    Ply,
+    /// `frame-NNNNNNN.obj`: positions, per-vertex normals and the faces, in the mesh's vertex
+    /// order (what DCC tools import as an OBJ sequence).
+    Obj,
+    /// `frames.pc2`: Blender's point cache (the Mesh Cache modifier's format), every frame in
+    /// one file, vertex order = the mesh's.
+    Pc2,
+}
+
+impl FrameFormat {
+    pub const ALL: [Self; 3] = [Self::Ply, Self::Obj, Self::Pc2];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ply => "ply",
+            Self::Obj => "obj",
+            Self::Pc2 => "pc2",
+        }
+    }
+
+    /// The format of this [`FrameFormat::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.name() == name)
+    }
+}
+
+/// Writes a run's frames into a directory in one format.
+#[derive(Debug)]
+pub struct FrameWriter {
+    directory: PathBuf,
+    triangles: Vec<[u32; 3]>,
+    sink: Sink,
+    written: usize,
+}
+
+#[derive(Debug)]
+enum Sink {
+    Ply,
+    Obj,
+    Pc2(Option<Pc2Stream>),
+}
+
+impl FrameWriter {
+    pub fn new(directory: &Path, format: FrameFormat, triangles: &[[u32; 3]]) -> Self {
+        Self {
+            directory: directory.to_owned(),
+            triangles: triangles.to_vec(),
+            sink: match format {
+                FrameFormat::Ply => Sink::Ply,
+                FrameFormat::Obj => Sink::Obj,
+                FrameFormat::Pc2 => Sink::Pc2(None),
+            },
+            written: 0,
+        }
+    }
+
+    pub fn frames_written(&self) -> usize {
+        self.written
+    }
+
+    /// Where frame `step` goes (the one `.pc2` file holds them all).
+    pub fn path(&self, step: u64) -> PathBuf {
+        self.directory.join(match self.sink {
+            Sink::Ply => format!("frame-{step:07}.ply"),
+            Sink::Obj => format!("frame-{step:07}.obj"),
+            Sink::Pc2(_) => "frames.pc2".to_owned(),
+        })
+    }
+
+    /// Writes the frame of step `step`.
+    pub fn write(&mut self, step: u64, positions: &[DVec3]) -> std::io::Result<()> {
+        let path = self.path(step);
+        match &mut self.sink {
+            Sink::Ply => write_ply_frame(&path, positions, &self.triangles)?,
+            Sink::Obj => write_atomically(&path, |w| {
+                write_obj_frame(w, step, positions, &self.triangles)
+            })?,
+            Sink::Pc2(stream) => {
+                if stream.is_none() {
+                    *stream = Some(Pc2Stream::create(&path, positions.len())?);
+                }
+                if let Some(stream) = stream {
+                    stream.append(positions)?;
+                }
+            }
+        }
+        self.written += 1;
+        Ok(())
+    }
+
+    /// Completes a file that collects frames (`.pc2`): only now does it appear under its name.
+    pub fn finish(self) -> std::io::Result<usize> {
+        if let Sink::Pc2(Some(stream)) = self.sink {
+            stream.commit()?;
+        }
+        Ok(self.written)
+    }
+}
+
+/// One OBJ frame: `v`, then area-weighted `vn` per vertex, then `f v//vn` with 1-based indices.
+fn write_obj_frame(
+    w: &mut dyn Write,
+    step: u64,
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+) -> std::io::Result<()> {
+    writeln!(w, "# written by hooke: step {step}")?;
+    for p in positions {
+        let p = p.as_vec3();
+        writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
+    }
+    for n in vertex_normals(positions, triangles) {
+        writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
+    }
+    for t in triangles {
+        let [a, b, c] = t.map(|i| i + 1);
+        writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+    }
+    Ok(())
+}
+
+/// Unit normals per vertex: the sum of the adjacent triangles' area-weighted normals (zero for
+/// a vertex no triangle uses).
+pub fn vertex_normals(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<glam::Vec3> {
+    let mut sums = vec![DVec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
+        // Twice the area times the unit normal.
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            sums[i as usize] += n;
+        }
+    }
+    sums.iter()
+        .map(|n| n.normalize_or_zero().as_vec3())
+        .collect()
+}
+
+/// Blender's point cache 2: a 32-byte header, then float32 `x y z` per point per sample.
+#[derive(Debug)]
+struct Pc2Stream {
+    file: AtomicFile,
+    points: usize,
+    samples: u32,
+}
+
+/// Byte offset of the header's sample count.
+const PC2_SAMPLE_COUNT_OFFSET: u64 = 28;
+
+impl Pc2Stream {
+    fn create(path: &Path, points: usize) -> std::io::Result<Self> {
+        let mut file = AtomicFile::create(path)?;
+        let points_field = i32::try_from(points)
+            .map_err(|_| std::io::Error::other("too many vertices for a .pc2 file"))?;
+        let w = file.writer();
+        w.write_all(b"POINTCACHE2\0")?;
+        w.write_all(&1i32.to_le_bytes())?; // file version
+        w.write_all(&points_field.to_le_bytes())?;
+        // Sample k is Blender frame 1 + k: the Mesh Cache modifier's default frame start.
+        w.write_all(&1f32.to_le_bytes())?; // start frame
+        w.write_all(&1f32.to_le_bytes())?; // frames per sample
+        w.write_all(&0i32.to_le_bytes())?; // samples, set at commit
+        Ok(Self {
+            file,
+            points,
+            samples: 0,
+        })
+    }
+
+    fn append(&mut self, positions: &[DVec3]) -> std::io::Result<()> {
+        if positions.len() != self.points {
+            return Err(std::io::Error::other(format!(
+                ".pc2 frame of {} points in a file of {}",
+                positions.len(),
+                self.points
+            )));
+        }
+        let w = self.file.writer();
+        for p in positions {
+            for value in p.as_vec3().to_array() {
+                w.write_all(&value.to_le_bytes())?;
+            }
+        }
+        self.samples += 1;
+        Ok(())
+    }
+
+    fn commit(mut self) -> std::io::Result<()> {
+        let w = self.file.writer();
+        w.seek(SeekFrom::Start(PC2_SAMPLE_COUNT_OFFSET))?;
+        w.write_all(&(self.samples as i32).to_le_bytes())?;
+        w.seek(SeekFrom::End(0))?;
+        self.file.commit()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        (
+            vec![
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(1.0, 1.0, 0.0),
+            ],
+            vec![[0, 1, 2], [1, 3, 2]],
+        )
+    }
+
+    #[test]
+    fn pc2_holds_every_frame_in_order_and_appears_only_when_finished() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (positions, triangles) = square();
+        let mut writer = FrameWriter::new(dir.path(), FrameFormat::Pc2, &triangles);
+        for step in 0..3u64 {
+            let moved: Vec<DVec3> = positions
+                .iter()
+                .map(|p| *p + DVec3::Z * step as f64)
+                .collect();
+            writer.write(step * 10, &moved).expect("frame");
+        }
+        let path = dir.path().join("frames.pc2");
+        assert!(!path.exists(), "the file appears only when complete");
+        assert_eq!(writer.finish().expect("finished"), 3);
+        let bytes = std::fs::read(&path).expect("read");
+        assert_eq!(&bytes[..12], b"POINTCACHE2\0");
+        let int = |at: usize| i32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
+        let float = |at: usize| f32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
+        assert_eq!((int(12), int(16), int(28)), (1, 4, 3));
+        assert_eq!(bytes.len(), 32 + 3 * 4 * 12);
+        // Sample 2, vertex 3: (1, 1, 2).
+        let at = 32 + (2 * 4 + 3) * 12;
+        assert_eq!([float(at), float(at + 4), float(at + 8)], [1.0, 1.0, 2.0]);
+        let leftovers = std::fs::read_dir(dir.path()).expect("list").count();
+        assert_eq!(leftovers, 1, "no temporary left");
+    }
+
+    #[test]
+    fn obj_frames_keep_vertex_order_with_normals() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (positions, triangles) = square();
+        let mut writer = FrameWriter::new(dir.path(), FrameFormat::Obj, &triangles);
+        writer.write(7, &positions).expect("frame");
+        let text = std::fs::read_to_string(dir.path().join("frame-0000007.obj")).expect("written");
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[2], "v 1 0 0");
+        assert_eq!(lines[5], "vn 0 0 1");
+        assert_eq!(lines.last(), Some(&"f 2//2 4//4 3//3"));
+        assert_eq!(writer.finish().expect("done"), 1);
+    }
+}
