@@ -11,7 +11,7 @@ use hooke::state_file::{load_state, save_state};
 use hooke_core::State;
 use hooke_core::collide::Shape;
 use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
-use hooke_core::frames::{FrameFormat, FrameWriter};
+use hooke_core::frames::{FrameFormat, FrameTiming, FrameWriter};
 use hooke_core::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -38,8 +38,9 @@ pub struct RunArgs {
     #[arg(long)]
     pub no_frames: bool,
     /// Frame files: `ply` (frame-NNNNNNN.ply, binary), `obj` (frame-NNNNNNN.obj with normals,
-    /// an OBJ sequence) or `pc2` (frames.pc2, Blender's point cache for the Mesh Cache
-    /// modifier, written when the run ends). Vertex order is always the mesh file's.
+    /// an OBJ sequence), `pc2` (frames.pc2, Blender's point cache for the Mesh Cache modifier)
+    /// or `usda` (frames.usda, a USD stage with the colliders); the last two are renamed into
+    /// place when the run ends. Vertex order is always the mesh file's.
     #[arg(long, default_value = "ply", value_parser = parse_frame_format)]
     pub output_format: FrameFormat,
     /// Run even if dt exceeds the stability bound.
@@ -120,9 +121,19 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     );
 
     let progress = progress_bar(steps);
-    let mut frames = FrameWriter::new(&output, args.output_format, &scene.model.triangles);
+    let timing = FrameTiming {
+        dt: scene.material.dt,
+        frame_every,
+    };
+    let mut frames = FrameWriter::new(
+        &output,
+        args.output_format,
+        &scene.name,
+        &scene.model.triangles,
+        timing,
+    );
     if !args.no_frames {
-        write_frame(&mut frames, &solver.state()?, first_step)?;
+        write_frame(&mut frames, &solver, &solver.state()?, first_step)?;
     }
 
     let mut solver_time = Duration::ZERO;
@@ -145,7 +156,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             Err(error) => return Err(stopped(error, &output, frames)),
         };
         if !args.no_frames && (step.is_multiple_of(frame_every) || step == steps) {
-            write_frame(&mut frames, &state, first_step + step)?;
+            write_frame(&mut frames, &solver, &state, first_step + step)?;
         }
     }
     let frames_written = frames
@@ -177,9 +188,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_frame(frames: &mut FrameWriter, state: &State, step: u64) -> anyhow::Result<()> {
+/// Writes one frame: the state's positions and, for formats that draw them, the colliders.
+fn write_frame(
+    frames: &mut FrameWriter,
+    solver: &Simulation,
+    state: &State,
+    step: u64,
+) -> anyhow::Result<()> {
     frames
-        .write(step, &state.positions)
+        .write(step, &state.positions, &solver.colliders()?)
         .with_context(|| format!("writing {}", frames.path(step).display()))
 }
 

@@ -1,5 +1,5 @@
-//! Where a run's frames go: binary PLY or OBJ files, one per frame, or one Blender point cache
-//! (`.pc2`) streamed as the frames come. Every file goes through [`crate::atomic_file`]: a
+//! Where a run's frames go: binary PLY or OBJ files, one per frame, or one file streamed as the
+//! frames come: a Blender point cache (`.pc2`) or a USD stage (`.usda`). Every file goes through [`crate::atomic_file`]: a
 //! reader, or a run killed midway, never sees one half written.
 
 use std::io::{Seek, SeekFrom, Write};
@@ -8,7 +8,13 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use crate::atomic_file::{AtomicFile, write_atomically};
+use crate::collide::Collider;
 use crate::mesh::write_ply_frame;
+
+mod usda;
+
+pub use usda::FrameTiming;
+use usda::UsdaStream;
 
 /// The formats `hooke run --output-format` writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -21,16 +27,20 @@ pub enum FrameFormat {
     /// `frames.pc2`: Blender's point cache (the Mesh Cache modifier's format), every frame in
     /// one file, vertex order = the mesh's.
     Pc2,
+    /// `frames.usda`: a USD stage, the cloth a `Mesh` with time-sampled `points` and `extent`,
+    /// the colliders `Sphere`, `Capsule` and `Plane` prims, animated where they move.
+    Usda,
 }
 
 impl FrameFormat {
-    pub const ALL: [Self; 3] = [Self::Ply, Self::Obj, Self::Pc2];
+    pub const ALL: [Self; 4] = [Self::Ply, Self::Obj, Self::Pc2, Self::Usda];
 
     pub fn name(self) -> &'static str {
         match self {
             Self::Ply => "ply",
             Self::Obj => "obj",
             Self::Pc2 => "pc2",
+            Self::Usda => "usda",
         }
     }
 
@@ -44,7 +54,9 @@ impl FrameFormat {
 #[derive(Debug)]
 pub struct FrameWriter {
     directory: PathBuf,
+    name: String,
     triangles: Vec<[u32; 3]>,
+    timing: FrameTiming,
     sink: Sink,
     written: usize,
 }
@@ -54,17 +66,29 @@ enum Sink {
     Ply,
     Obj,
     Pc2(Option<Pc2Stream>),
+    Usda(Option<UsdaStream>),
 }
 
 impl FrameWriter {
-    pub fn new(directory: &Path, format: FrameFormat, triangles: &[[u32; 3]]) -> Self {
+    /// Frames of the scene `name` (its mesh's `triangles`), a frame every
+    /// `timing.frame_every` steps of `timing.dt`, into `directory`.
+    pub fn new(
+        directory: &Path,
+        format: FrameFormat,
+        name: &str,
+        triangles: &[[u32; 3]],
+        timing: FrameTiming,
+    ) -> Self {
         Self {
             directory: directory.to_owned(),
+            name: name.to_owned(),
             triangles: triangles.to_vec(),
+            timing,
             sink: match format {
                 FrameFormat::Ply => Sink::Ply,
                 FrameFormat::Obj => Sink::Obj,
                 FrameFormat::Pc2 => Sink::Pc2(None),
+                FrameFormat::Usda => Sink::Usda(None),
             },
             written: 0,
         }
@@ -80,11 +104,17 @@ impl FrameWriter {
             Sink::Ply => format!("frame-{step:07}.ply"),
             Sink::Obj => format!("frame-{step:07}.obj"),
             Sink::Pc2(_) => "frames.pc2".to_owned(),
+            Sink::Usda(_) => "frames.usda".to_owned(),
         })
     }
 
-    /// Writes the frame of step `step`.
-    pub fn write(&mut self, step: u64, positions: &[DVec3]) -> std::io::Result<()> {
+    /// Writes the frame of step `step`: the cloth's positions and where the colliders are.
+    pub fn write(
+        &mut self,
+        step: u64,
+        positions: &[DVec3],
+        colliders: &[Collider],
+    ) -> std::io::Result<()> {
         let path = self.path(step);
         match &mut self.sink {
             Sink::Ply => write_ply_frame(&path, positions, &self.triangles)?,
@@ -99,6 +129,20 @@ impl FrameWriter {
                     stream.append(positions)?;
                 }
             }
+            Sink::Usda(stream) => {
+                if stream.is_none() {
+                    *stream = Some(UsdaStream::create(
+                        &path,
+                        &self.name,
+                        self.timing,
+                        positions.len(),
+                        &self.triangles,
+                    )?);
+                }
+                if let Some(stream) = stream {
+                    stream.append(step, positions, colliders)?;
+                }
+            }
         }
         self.written += 1;
         Ok(())
@@ -106,8 +150,10 @@ impl FrameWriter {
 
     /// Completes a file that collects frames (`.pc2`): only now does it appear under its name.
     pub fn finish(self) -> std::io::Result<usize> {
-        if let Sink::Pc2(Some(stream)) = self.sink {
-            stream.commit()?;
+        match self.sink {
+            Sink::Pc2(Some(stream)) => stream.commit()?,
+            Sink::Usda(Some(stream)) => stream.commit()?,
+            _ => {}
         }
         Ok(self.written)
     }
@@ -226,17 +272,25 @@ mod tests {
         )
     }
 
+    fn writer(dir: &Path, format: FrameFormat, triangles: &[[u32; 3]]) -> FrameWriter {
+        let timing = FrameTiming {
+            dt: 1e-3,
+            frame_every: 10,
+        };
+        FrameWriter::new(dir, format, "square", triangles, timing)
+    }
+
     #[test]
     fn pc2_holds_every_frame_in_order_and_appears_only_when_finished() {
         let dir = tempfile::tempdir().expect("tempdir");
         let (positions, triangles) = square();
-        let mut writer = FrameWriter::new(dir.path(), FrameFormat::Pc2, &triangles);
+        let mut writer = writer(dir.path(), FrameFormat::Pc2, &triangles);
         for step in 0..3u64 {
             let moved: Vec<DVec3> = positions
                 .iter()
                 .map(|p| *p + DVec3::Z * step as f64)
                 .collect();
-            writer.write(step * 10, &moved).expect("frame");
+            writer.write(step * 10, &moved, &[]).expect("frame");
         }
         let path = dir.path().join("frames.pc2");
         assert!(!path.exists(), "the file appears only when complete");
@@ -258,8 +312,8 @@ mod tests {
     fn obj_frames_keep_vertex_order_with_normals() {
         let dir = tempfile::tempdir().expect("tempdir");
         let (positions, triangles) = square();
-        let mut writer = FrameWriter::new(dir.path(), FrameFormat::Obj, &triangles);
-        writer.write(7, &positions).expect("frame");
+        let mut writer = writer(dir.path(), FrameFormat::Obj, &triangles);
+        writer.write(7, &positions, &[]).expect("frame");
         let text = std::fs::read_to_string(dir.path().join("frame-0000007.obj")).expect("written");
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[2], "v 1 0 0");
