@@ -11,8 +11,8 @@ use std::sync::Arc;
 
 use glam::{DVec3, Vec2, Vec3};
 use hooke::live::{Choice, LiveSimulation};
-use hooke::pointer::{Pointer, PushDirection};
-use hooke_gpu::render::{Camera, Picker, RenderOptions, SceneRenderer};
+use hooke::live_view::LiveView;
+use hooke::pointer::PushDirection;
 use hooke_gpu::{GpuContext, GpuMethod, wgpu};
 use wasm_bindgen::prelude::*;
 
@@ -69,12 +69,8 @@ struct Inner {
     context: Arc<GpuContext>,
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
-    renderer: SceneRenderer,
-    picker: Picker,
-    camera: Camera,
-    options: RenderOptions,
+    view: LiveView,
     simulation: LiveSimulation,
-    pointer: Pointer,
     clock: FrameClock,
 }
 
@@ -150,23 +146,16 @@ impl Page {
         surface.configure(&context.device, &config);
         let mut simulation =
             LiveSimulation::new(Arc::clone(&context), scene, choice).map_err(|e| e.to_string())?;
-        let mut renderer = SceneRenderer::new(&context, simulation.model(), view_format)
-            .map_err(|e| e.to_string())?;
-        renderer.set_colliders(&context, &simulation.model().collision.colliders);
-        let picker = Picker::new(&context, simulation.model().vertex_count() as u32)
-            .map_err(|e| e.to_string())?;
+        let view =
+            LiveView::new(&context, &simulation, view_format, size).map_err(|e| e.to_string())?;
         simulation.apply();
         Ok(Self {
             inner: Rc::new(RefCell::new(Inner {
-                camera: Camera::framing(&renderer.bounds()),
-                options: RenderOptions::default(),
-                pointer: Pointer::new(size),
                 clock: FrameClock::default(),
                 context,
                 surface,
                 config,
-                renderer,
-                picker,
+                view,
                 simulation,
             })),
         })
@@ -245,7 +234,7 @@ impl Page {
         inner
             .surface
             .configure(&inner.context.device, &inner.config);
-        inner.pointer.size = [inner.config.width, inner.config.height];
+        inner.view.pointer.size = [inner.config.width, inner.config.height];
     }
 
     /// Simulates this frame's steps and draws; `now_ms` is the animation frame's timestamp.
@@ -278,30 +267,31 @@ impl Page {
     /// Pointer pressed at canvas pixel (`x`, `y`); `button` 0 grabs or orbits, others pan.
     pub fn pointer_down(&self, x: f32, y: f32, button: u32) {
         let inner = &mut *self.inner.borrow_mut();
-        inner.pointer.cursor = Vec2::new(x, y);
+        inner.view.pointer.cursor = Vec2::new(x, y);
         if button == 0 {
-            inner.pointer.press_primary();
+            inner.view.pointer.press_primary();
         } else {
-            inner.pointer.press_secondary();
+            inner.view.pointer.press_secondary();
         }
     }
 
     pub fn pointer_move(&self, x: f32, y: f32) {
         let inner = &mut *self.inner.borrow_mut();
-        inner
-            .pointer
-            .move_to(Vec2::new(x, y), &mut inner.camera, &mut inner.simulation);
+        let view = &mut inner.view;
+        view.pointer
+            .move_to(Vec2::new(x, y), &mut view.camera, &mut inner.simulation);
     }
 
     pub fn pointer_up(&self) {
         let inner = &mut *self.inner.borrow_mut();
-        inner.pointer.release(&mut inner.simulation);
+        inner.view.pointer.release(&mut inner.simulation);
     }
 
     /// The wheel turned by `lines` (positive zooms in).
     pub fn wheel(&self, lines: f32) {
         let inner = &mut *self.inner.borrow_mut();
-        inner.pointer.wheel(lines, &mut inner.camera);
+        let view = &mut inner.view;
+        view.pointer.wheel(lines, &mut view.camera);
     }
 
     pub fn set_paused(&self, paused: bool) {
@@ -336,7 +326,7 @@ impl Page {
     }
 
     pub fn set_wireframe(&self, wireframe: bool) {
-        self.inner.borrow_mut().options.wireframe = wireframe;
+        self.inner.borrow_mut().view.options.wireframe = wireframe;
     }
 
     /// Pushes the first dynamic ball `"left"`, `"right"`, `"away"`, `"toward"` (relative to the
@@ -347,7 +337,7 @@ impl Page {
             "" => DVec3::ZERO,
             name => PushDirection::from_name(name)
                 .ok_or_else(|| js_error(format!("no push direction {name:?}")))?
-                .relative_to(&inner.camera),
+                .relative_to(&inner.view.camera),
         };
         inner.simulation.push(force);
         Ok(())
@@ -356,9 +346,8 @@ impl Page {
     /// The pixel where world point (`x`, `y`, `z`) is drawn.
     pub fn project(&self, x: f32, y: f32, z: f32) -> Vec<f32> {
         let inner = self.inner.borrow();
-        let pixel = inner
-            .camera
-            .to_pixels(Vec3::new(x, y, z), inner.pointer.size);
+        let view = &inner.view;
+        let pixel = view.camera.to_pixels(Vec3::new(x, y, z), view.pointer.size);
         vec![pixel.x, pixel.y]
     }
 
@@ -389,7 +378,7 @@ impl Page {
                 "speed": simulation.wind_speed,
             },
             "self_collision": simulation.self_collision_enabled,
-            "holding": inner.pointer.holding(),
+            "holding": inner.view.pointer.holding(),
             "grab_target": simulation.grab.map(|(_, target)| target.to_array()),
             "message": simulation.message,
         })
@@ -431,10 +420,7 @@ impl Page {
 
 impl Inner {
     fn frame(&mut self) -> Result<(), String> {
-        if let Some(answer) = self.picker.poll(&self.context) {
-            self.pointer
-                .picked(answer, &mut self.camera, &mut self.simulation);
-        }
+        self.view.take_pick(&self.context, &mut self.simulation);
         let surface_texture = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -459,37 +445,12 @@ impl Inner {
                     label: Some("page frame"),
                 });
         self.simulation.encode_frame(&mut encoder);
-        let positions = self
-            .simulation
-            .positions()
-            .ok_or("the page's solver has no position buffer")?;
-        let mut picking = false;
-        if let Some(at) = self.pointer.pick_request() {
-            picking = self
-                .picker
-                .encode(&self.context, &mut encoder, positions, &self.camera, at);
-            if picking {
-                self.pointer.pick_recorded();
-            }
-        }
-        self.options.wind = self.simulation.wind().map(|w| w.velocity.as_vec3());
-        self.renderer
-            .set_colliders(&self.context, &self.simulation.colliders_to_draw());
-        self.simulation
-            .copy_spheres(&mut encoder, self.renderer.sphere_buffer());
-        self.renderer.encode(
-            &self.context,
-            &mut encoder,
-            positions,
-            &view,
-            [self.config.width, self.config.height],
-            &self.camera,
-            &self.options,
-        );
+        let picking = self
+            .view
+            .encode(&self.context, &mut encoder, &self.simulation, &view)
+            .map_err(|e| e.to_string())?;
         self.context.queue.submit([encoder.finish()]);
-        if picking {
-            self.picker.submitted();
-        }
+        self.view.submitted(picking);
         self.simulation.after_submit();
         self.context.queue.present(surface_texture);
         self.context.take_error().map_err(|e| e.to_string())

@@ -39,6 +39,7 @@
 //! ```
 
 pub mod live;
+pub mod live_view;
 mod offscreen;
 pub mod pointer;
 mod simulation;

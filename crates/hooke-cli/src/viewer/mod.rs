@@ -16,7 +16,7 @@ use anyhow::Context;
 use clap::Args;
 use glam::Vec2;
 use hooke_gpu::GpuContext;
-use hooke_gpu::render::{Camera, Image, Picker, RenderOptions, SceneRenderer};
+use hooke_gpu::render::Image;
 use hooke_gpu::wgpu;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -26,7 +26,7 @@ use winit::window::{Window, WindowId};
 
 use crate::scene_loading::load_scene;
 use hooke::live::{Choice, LiveSimulation};
-use hooke::pointer::Pointer;
+use hooke::live_view::LiveView;
 use hooke::pointer::PushDirection;
 
 #[derive(Debug, Args)]
@@ -121,15 +121,11 @@ struct Viewer {
     context: Arc<GpuContext>,
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
-    renderer: SceneRenderer,
-    picker: Picker,
-    camera: Camera,
-    options: RenderOptions,
+    view: LiveView,
     egui: egui::Context,
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
     simulation: LiveSimulation,
-    pointer: Pointer,
     frames: u64,
     frame_limit: Option<u64>,
     screenshot: Option<PathBuf>,
@@ -198,9 +194,12 @@ impl Viewer {
             Choice::from_solver(args.solver.choice(crate::solvers::Backend::Gpu))
                 .context("the viewer runs the cpu or gpu backend, not the reference")?,
         )?;
-        let mut renderer = SceneRenderer::new(&context, simulation.model(), format)?;
-        renderer.set_colliders(&context, &simulation.model().collision.colliders);
-        let picker = Picker::new(&context, simulation.model().vertex_count() as u32)?;
+        let view = LiveView::new(
+            &context,
+            &simulation,
+            format,
+            [size.width.max(1), size.height.max(1)],
+        )?;
         let egui = egui::Context::default();
         let egui_state = egui_winit::State::new(
             egui.clone(),
@@ -216,19 +215,15 @@ impl Viewer {
             egui_wgpu::RendererOptions::default(),
         );
         let mut viewer = Self {
-            camera: Camera::framing(&renderer.bounds()),
-            options: RenderOptions::default(),
+            view,
             window,
             context,
             surface,
             config,
-            renderer,
-            picker,
             egui,
             egui_state,
             egui_renderer,
             simulation,
-            pointer: Pointer::new([size.width.max(1), size.height.max(1)]),
             frames: 0,
             frame_limit: args.frames,
             screenshot: args.screenshot.clone(),
@@ -253,14 +248,15 @@ impl Viewer {
                 self.config.width = size.width.max(1);
                 self.config.height = size.height.max(1);
                 self.surface.configure(&self.context.device, &self.config);
-                self.pointer.size = self.size();
+                self.view.pointer.size = self.size();
             }
             WindowEvent::RedrawRequested => return self.frame(),
             _ if response.consumed => {}
             WindowEvent::CursorMoved { position, .. } => {
                 let cursor = Vec2::new(position.x as f32, position.y as f32);
-                self.pointer
-                    .move_to(cursor, &mut self.camera, &mut self.simulation);
+                self.view
+                    .pointer
+                    .move_to(cursor, &mut self.view.camera, &mut self.simulation);
             }
             WindowEvent::MouseInput { state, button, .. } => self.mouse_button(*state, *button),
             WindowEvent::MouseWheel { delta, .. } => {
@@ -268,14 +264,14 @@ impl Viewer {
                     MouseScrollDelta::LineDelta(_, y) => *y,
                     MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
                 };
-                self.pointer.wheel(lines, &mut self.camera);
+                self.view.pointer.wheel(lines, &mut self.view.camera);
             }
             WindowEvent::KeyboardInput { event, .. }
                 if let Some(direction) = push_key(&event.logical_key) =>
             {
                 let pushing = event.state == ElementState::Pressed;
                 self.simulation.push(if pushing {
-                    direction.relative_to(&self.camera)
+                    direction.relative_to(&self.view.camera)
                 } else {
                     glam::DVec3::ZERO
                 });
@@ -287,7 +283,7 @@ impl Viewer {
                     Key::Character(c) if c == "r" => self.simulation.reset(),
                     Key::Character(c) if c == "s" => self.simulation.step_once = true,
                     Key::Character(c) if c == "w" => {
-                        self.options.wireframe = !self.options.wireframe
+                        self.view.options.wireframe = !self.view.options.wireframe
                     }
                     _ => {}
                 }
@@ -303,12 +299,12 @@ impl Viewer {
 
     fn mouse_button(&mut self, state: ElementState, button: MouseButton) {
         match (button, state) {
-            (MouseButton::Left, ElementState::Pressed) => self.pointer.press_primary(),
+            (MouseButton::Left, ElementState::Pressed) => self.view.pointer.press_primary(),
             (MouseButton::Right | MouseButton::Middle, ElementState::Pressed) => {
-                self.pointer.press_secondary()
+                self.view.pointer.press_secondary()
             }
             (_, ElementState::Pressed) => {}
-            (_, ElementState::Released) => self.pointer.release(&mut self.simulation),
+            (_, ElementState::Released) => self.view.pointer.release(&mut self.simulation),
         }
     }
 
@@ -317,7 +313,7 @@ impl Viewer {
         let Some(mut script) = self.drag_script.take() else {
             return;
         };
-        let holding = self.pointer.holding();
+        let holding = self.view.pointer.holding();
         let model = self.simulation.model();
         let centroid = model.initial_positions.iter().sum::<glam::DVec3>()
             / model.vertex_count().max(1) as f64;
@@ -328,16 +324,17 @@ impl Viewer {
             .copied()
             .unwrap_or(centroid);
         let size = self.size();
-        let target = self.camera.to_pixels(middle.as_vec3(), size);
+        let target = self.view.camera.to_pixels(middle.as_vec3(), size);
         match script.next(self.frames, holding, target) {
             script::Action::Press(at) => {
-                self.pointer.cursor = at;
+                self.view.pointer.cursor = at;
                 self.mouse_button(ElementState::Pressed, MouseButton::Left);
             }
             script::Action::Move(delta) => {
-                let cursor = self.pointer.cursor + delta;
-                self.pointer
-                    .move_to(cursor, &mut self.camera, &mut self.simulation);
+                let cursor = self.view.pointer.cursor + delta;
+                self.view
+                    .pointer
+                    .move_to(cursor, &mut self.view.camera, &mut self.simulation);
             }
             script::Action::Tune => {
                 // Three panel edits, each applied on its own as the sliders do.
@@ -362,10 +359,7 @@ impl Viewer {
         self.frame_seconds =
             0.9 * self.frame_seconds + 0.1 * now.duration_since(self.last_frame).as_secs_f64();
         self.last_frame = now;
-        if let Some(answer) = self.picker.poll(&self.context) {
-            self.pointer
-                .picked(answer, &mut self.camera, &mut self.simulation);
-        }
+        self.view.take_pick(&self.context, &mut self.simulation);
         let surface_texture = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
@@ -385,34 +379,9 @@ impl Viewer {
                     label: Some("viewer frame"),
                 });
         self.simulation.encode_frame(&mut encoder);
-        let positions = self
-            .simulation
-            .positions()
-            .context("the viewer's solver draws from a GPU buffer")?;
-        let size = self.size();
-        let mut picking = false;
-        if let Some(at) = self.pointer.pick_request() {
-            picking = self
-                .picker
-                .encode(&self.context, &mut encoder, positions, &self.camera, at);
-            if picking {
-                self.pointer.pick_recorded();
-            }
-        }
-        self.options.wind = self.simulation.wind().map(|w| w.velocity.as_vec3());
-        self.renderer
-            .set_colliders(&self.context, &self.simulation.colliders_to_draw());
-        self.simulation
-            .copy_spheres(&mut encoder, self.renderer.sphere_buffer());
-        self.renderer.encode(
-            &self.context,
-            &mut encoder,
-            positions,
-            &view,
-            size,
-            &self.camera,
-            &self.options,
-        );
+        let picking = self
+            .view
+            .encode(&self.context, &mut encoder, &self.simulation, &view)?;
         self.encode_panel(&mut encoder, &view)?;
         let last = self
             .frame_limit
@@ -422,9 +391,7 @@ impl Viewer {
             _ => None,
         };
         self.context.queue.submit([encoder.finish()]);
-        if picking {
-            self.picker.submitted();
-        }
+        self.view.submitted(picking);
         self.simulation.after_submit();
         if last {
             eprintln!(
@@ -453,14 +420,14 @@ impl Viewer {
     ) -> anyhow::Result<()> {
         let input = self.egui_state.take_egui_input(&self.window);
         let fps = 1.0 / self.frame_seconds.max(1e-6);
-        let bounds = self.renderer.bounds();
+        let bounds = self.view.renderer.bounds();
         let egui = self.egui.clone();
         let output = egui.run_ui(input, |ui| {
             panel::show(
                 ui,
                 &mut self.simulation,
-                &mut self.options,
-                &mut self.camera,
+                &mut self.view.options,
+                &mut self.view.camera,
                 &bounds,
                 fps,
             );
