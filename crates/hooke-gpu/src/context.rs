@@ -125,7 +125,7 @@ impl GpuContext {
         pollster::block_on(Self::open_async(instance, surface))
     }
 
-    pub async fn open_async(
+    async fn open_async(
         instance: &wgpu::Instance,
         surface: Option<&wgpu::Surface<'_>>,
     ) -> Result<Arc<Self>, GpuError> {

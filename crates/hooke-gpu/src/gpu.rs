@@ -289,6 +289,27 @@ pub fn read_back(
     context: &GpuContext,
     sources: &[(&wgpu::Buffer, u64)],
 ) -> Result<Vec<Vec<u8>>, GpuError> {
+    let staging = copy_to_staging(context, sources);
+    map_blocking(context, &staging)?;
+    let view = staging
+        .slice(..)
+        .get_mapped_range()
+        .map_err(|e| GpuError::ReadBack(e.to_string()))?;
+    let mut out = Vec::with_capacity(sources.len());
+    let mut offset = 0usize;
+    for (_, bytes) in sources {
+        out.push(view[offset..offset + *bytes as usize].to_vec());
+        offset += *bytes as usize;
+    }
+    drop(view);
+    staging.unmap();
+    Ok(out)
+}
+
+/// Records and submits copies of `bytes` of each source, one after another, into a new
+/// mappable buffer. Mapping it is the caller's: waited for natively ([`read_back`]), awaited in a
+/// browser.
+pub fn copy_to_staging(context: &GpuContext, sources: &[(&wgpu::Buffer, u64)]) -> wgpu::Buffer {
     let total: u64 = sources.iter().map(|(_, bytes)| *bytes).sum();
     let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("read-back staging"),
@@ -307,20 +328,26 @@ pub fn read_back(
         offset += bytes;
     }
     context.queue.submit([encoder.finish()]);
-    map_blocking(context, &staging)?;
-    let view = staging
-        .slice(..)
-        .get_mapped_range()
-        .map_err(|e| GpuError::ReadBack(e.to_string()))?;
-    let mut out = Vec::with_capacity(sources.len());
-    let mut offset = 0usize;
-    for (_, bytes) in sources {
-        out.push(view[offset..offset + *bytes as usize].to_vec());
-        offset += *bytes as usize;
+    staging
+}
+
+/// The frame's texture of `surface`, or `None` when this frame should be skipped (timed out,
+/// occluded, or the surface had to be configured again).
+pub fn current_texture(
+    context: &GpuContext,
+    surface: &wgpu::Surface<'_>,
+    config: &wgpu::SurfaceConfiguration,
+) -> Option<wgpu::SurfaceTexture> {
+    match surface.get_current_texture() {
+        wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => {
+            Some(t)
+        }
+        wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => None,
+        _ => {
+            surface.configure(&context.device, config);
+            None
+        }
     }
-    drop(view);
-    staging.unmap();
-    Ok(out)
 }
 
 /// `vertex_count + 1` offsets, then each vertex's triangle indices.

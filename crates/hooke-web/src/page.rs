@@ -421,16 +421,10 @@ impl Page {
 impl Inner {
     fn frame(&mut self) -> Result<(), String> {
         self.view.take_pick(&self.context, &mut self.simulation);
-        let surface_texture = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t)
-            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
-                return Ok(());
-            }
-            _ => {
-                self.surface.configure(&self.context.device, &self.config);
-                return Ok(());
-            }
+        let Some(surface_texture) =
+            hooke_gpu::gpu::current_texture(&self.context, &self.surface, &self.config)
+        else {
+            return Ok(());
         };
         let view = surface_texture
             .texture
@@ -463,20 +457,7 @@ impl Inner {
             .positions()
             .ok_or("the page's solver has no position buffer")?;
         let bytes = 16 * self.simulation.model().vertex_count() as u64;
-        let staging = self.context.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("positions read-back"),
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder =
-            self.context
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("positions read-back"),
-                });
-        encoder.copy_buffer_to_buffer(source, 0, &staging, 0, bytes);
-        self.context.queue.submit([encoder.finish()]);
+        let staging = hooke_gpu::gpu::copy_to_staging(&self.context, &[(source, bytes)]);
         Ok(staging)
     }
 }

@@ -195,8 +195,13 @@ fn write_frame(
     state: &State,
     step: u64,
 ) -> anyhow::Result<()> {
+    let colliders = if frames.draws_colliders() {
+        solver.colliders()?
+    } else {
+        Vec::new()
+    };
     frames
-        .write(step, &state.positions, &solver.colliders()?)
+        .write(step, &state.positions, &colliders)
         .with_context(|| format!("writing {}", frames.path(step).display()))
 }
 

@@ -360,16 +360,10 @@ impl Viewer {
             0.9 * self.frame_seconds + 0.1 * now.duration_since(self.last_frame).as_secs_f64();
         self.last_frame = now;
         self.view.take_pick(&self.context, &mut self.simulation);
-        let surface_texture = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t)
-            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
-                return Ok(true);
-            }
-            _ => {
-                self.surface.configure(&self.context.device, &self.config);
-                return Ok(true);
-            }
+        let Some(surface_texture) =
+            hooke_gpu::gpu::current_texture(&self.context, &self.surface, &self.config)
+        else {
+            return Ok(true);
         };
         let view = surface_texture.texture.create_view(&Default::default());
         let mut encoder =

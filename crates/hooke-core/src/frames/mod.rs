@@ -94,6 +94,12 @@ impl FrameWriter {
         }
     }
 
+    /// Whether frames carry the colliders (USD draws them; the others hold only the cloth), so
+    /// a caller reads them back only then (on the GPU, dynamic balls cost a read-back).
+    pub fn draws_colliders(&self) -> bool {
+        matches!(self.sink, Sink::Usda(_))
+    }
+
     pub fn frames_written(&self) -> usize {
         self.written
     }

@@ -96,15 +96,19 @@ impl Camera {
 mod tests {
     use super::*;
 
-    #[test]
-    fn ray_through_the_centre_points_at_the_target() {
-        let camera = Camera {
+    fn tilted() -> Camera {
+        Camera {
             target: Vec3::new(1.0, 2.0, 3.0),
             distance: 4.0,
             yaw: 0.3,
             pitch: 0.4,
             fov_y: 0.8,
-        };
+        }
+    }
+
+    #[test]
+    fn ray_through_the_centre_points_at_the_target() {
+        let camera = tilted();
         let (origin, direction) = camera.ray(Vec2::ZERO, 1.5);
         let to_target = (camera.target - origin).normalize();
         assert!(direction.dot(to_target) > 0.9999);
@@ -112,13 +116,7 @@ mod tests {
 
     #[test]
     fn the_target_is_drawn_at_the_image_centre() {
-        let camera = Camera {
-            target: Vec3::new(1.0, 2.0, 3.0),
-            distance: 4.0,
-            yaw: 0.3,
-            pitch: 0.4,
-            fov_y: 0.8,
-        };
+        let camera = tilted();
         let pixel = camera.to_pixels(camera.target, [300, 200]);
         assert!((pixel - Vec2::new(150.0, 100.0)).length() < 1e-3, "{pixel}");
         let above = camera.to_pixels(camera.target + Vec3::Y, [300, 200]);
