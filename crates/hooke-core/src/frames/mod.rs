@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use crate::atomic_file::{AtomicFile, write_atomically};
 use crate::collide::Collider;
-use crate::mesh::write_ply_frame;
+use crate::mesh::{TextureCoordinates, write_ply_frame};
 
 mod usda;
 
@@ -48,14 +48,24 @@ impl FrameFormat {
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|f| f.name() == name)
     }
+
+    /// The format of one file holding every frame that `path` names by its extension
+    /// (`cloth.usda`, `cloth.pc2`); `None` for anything else, a directory's name say.
+    pub fn of_single_file(path: &Path) -> Option<Self> {
+        let extension = path.extension()?.to_str()?.to_ascii_lowercase();
+        Self::from_name(&extension).filter(|f| matches!(f, Self::Pc2 | Self::Usda))
+    }
 }
 
 /// Writes a run's frames into a directory in one format.
 #[derive(Debug)]
 pub struct FrameWriter {
     directory: PathBuf,
+    /// Where a format of one file (`.pc2`, `.usda`) writes it, if not `frames.<ext>` in `directory`.
+    stream_path: Option<PathBuf>,
     name: String,
     triangles: Vec<[u32; 3]>,
+    uvs: Option<TextureCoordinates>,
     timing: FrameTiming,
     sink: Sink,
     written: usize,
@@ -70,19 +80,22 @@ enum Sink {
 }
 
 impl FrameWriter {
-    /// Frames of the scene `name` (its mesh's `triangles`), a frame every
-    /// `timing.frame_every` steps of `timing.dt`, into `directory`.
+    /// Frames of the scene `name` (its mesh's `triangles` and texture coordinates `uvs`), a
+    /// frame every `timing.frame_every` steps of `timing.dt`, into `directory`.
     pub fn new(
         directory: &Path,
         format: FrameFormat,
         name: &str,
         triangles: &[[u32; 3]],
+        uvs: Option<&TextureCoordinates>,
         timing: FrameTiming,
     ) -> Self {
         Self {
             directory: directory.to_owned(),
+            stream_path: None,
             name: name.to_owned(),
             triangles: triangles.to_vec(),
+            uvs: uvs.cloned(),
             timing,
             sink: match format {
                 FrameFormat::Ply => Sink::Ply,
@@ -92,6 +105,13 @@ impl FrameWriter {
             },
             written: 0,
         }
+    }
+
+    /// Writes a format of one file (`.pc2`, `.usda`) to `path` instead of `frames.<ext>`; a
+    /// format of a file per frame ignores it.
+    pub fn streaming_to(mut self, path: &Path) -> Self {
+        self.stream_path = Some(path.to_owned());
+        self
     }
 
     /// Whether frames carry the colliders (USD draws them; the others hold only the cloth), so
@@ -104,8 +124,11 @@ impl FrameWriter {
         self.written
     }
 
-    /// Where frame `step` goes (the one `.pc2` file holds them all).
+    /// Where frame `step` goes (the one `.pc2` or `.usda` file holds them all).
     pub fn path(&self, step: u64) -> PathBuf {
+        if let (Some(path), Sink::Pc2(_) | Sink::Usda(_)) = (&self.stream_path, &self.sink) {
+            return path.clone();
+        }
         self.directory.join(match self.sink {
             Sink::Ply => format!("frame-{step:07}.ply"),
             Sink::Obj => format!("frame-{step:07}.obj"),
@@ -123,9 +146,9 @@ impl FrameWriter {
     ) -> std::io::Result<()> {
         let path = self.path(step);
         match &mut self.sink {
-            Sink::Ply => write_ply_frame(&path, positions, &self.triangles)?,
+            Sink::Ply => write_ply_frame(&path, positions, &self.triangles, self.uvs.as_ref())?,
             Sink::Obj => write_atomically(&path, |w| {
-                write_obj_frame(w, step, positions, &self.triangles)
+                write_obj_frame(w, step, positions, &self.triangles, self.uvs.as_ref())
             })?,
             Sink::Pc2(stream) => {
                 if stream.is_none() {
@@ -143,6 +166,7 @@ impl FrameWriter {
                         self.timing,
                         positions.len(),
                         &self.triangles,
+                        self.uvs.as_ref(),
                     )?);
                 }
                 if let Some(stream) = stream {
@@ -165,24 +189,37 @@ impl FrameWriter {
     }
 }
 
-/// One OBJ frame: `v`, then area-weighted `vn` per vertex, then `f v//vn` with 1-based indices.
+/// One OBJ frame: `v`, then the texture coordinates `vt` if any, then area-weighted `vn` per
+/// vertex, then `f v/vt/vn` (or `f v//vn`) with 1-based indices.
 fn write_obj_frame(
     w: &mut dyn Write,
     step: u64,
     positions: &[DVec3],
     triangles: &[[u32; 3]],
+    uvs: Option<&TextureCoordinates>,
 ) -> std::io::Result<()> {
     writeln!(w, "# written by hooke: step {step}")?;
     for p in positions {
         let p = p.as_vec3();
         writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
     }
+    if let Some(uvs) = uvs {
+        for [u, v] in &uvs.coordinates {
+            writeln!(w, "vt {} {}", *u as f32, *v as f32)?;
+        }
+    }
     for n in vertex_normals(positions, triangles) {
         writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
     }
-    for t in triangles {
+    for (k, t) in triangles.iter().enumerate() {
         let [a, b, c] = t.map(|i| i + 1);
-        writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+        match uvs {
+            Some(uvs) => {
+                let [ta, tb, tc] = uvs.corners[k].map(|i| i + 1);
+                writeln!(w, "f {a}/{ta}/{a} {b}/{tb}/{b} {c}/{tc}/{c}")?;
+            }
+            None => writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?,
+        }
     }
     Ok(())
 }
@@ -283,7 +320,7 @@ mod tests {
             dt: 1e-3,
             frame_every: 10,
         };
-        FrameWriter::new(dir, format, "square", triangles, timing)
+        FrameWriter::new(dir, format, "square", triangles, None, timing)
     }
 
     #[test]
@@ -326,5 +363,43 @@ mod tests {
         assert_eq!(lines[5], "vn 0 0 1");
         assert_eq!(lines.last(), Some(&"f 2//2 4//4 3//3"));
         assert_eq!(writer.finish().expect("done"), 1);
+    }
+
+    #[test]
+    fn obj_frames_carry_texture_coordinates_per_corner() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (positions, triangles) = square();
+        let uvs = TextureCoordinates {
+            coordinates: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.25, 0.5]],
+            corners: vec![[0, 1, 2], [4, 3, 2]],
+        };
+        let timing = FrameTiming {
+            dt: 1e-3,
+            frame_every: 1,
+        };
+        let mut writer = FrameWriter::new(
+            dir.path(),
+            FrameFormat::Obj,
+            "s",
+            &triangles,
+            Some(&uvs),
+            timing,
+        );
+        writer.write(0, &positions, &[]).expect("frame");
+        let text = std::fs::read_to_string(dir.path().join("frame-0000000.obj")).expect("written");
+        assert!(text.contains("\nvt 0.25 0.5\n"), "{text}");
+        assert_eq!(text.lines().last(), Some("f 2/5/2 4/4/4 3/3/3"));
+    }
+
+    #[test]
+    fn a_streamed_format_goes_to_the_file_it_is_given() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (positions, triangles) = square();
+        let path = dir.path().join("cloth.pc2");
+        let mut writer = writer(dir.path(), FrameFormat::Pc2, &triangles).streaming_to(&path);
+        assert_eq!(writer.path(10), path);
+        writer.write(0, &positions, &[]).expect("frame");
+        writer.finish().expect("finished");
+        assert!(path.exists() && !dir.path().join("frames.pc2").exists());
     }
 }

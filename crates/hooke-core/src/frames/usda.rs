@@ -13,6 +13,7 @@ use glam::{DQuat, DVec3, Vec3};
 
 use crate::atomic_file::AtomicFile;
 use crate::collide::{Collider, Shape};
+use crate::mesh::TextureCoordinates;
 
 /// How steps map to time.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,6 +55,7 @@ impl UsdaStream {
         timing: FrameTiming,
         points: usize,
         triangles: &[[u32; 3]],
+        uvs: Option<&TextureCoordinates>,
     ) -> std::io::Result<Self> {
         let mut file = AtomicFile::create(path)?;
         let fps = timing.frames_per_second();
@@ -87,6 +89,9 @@ impl UsdaStream {
             "        int[] faceVertexIndices = [{}]",
             indices.join(", ")
         )?;
+        if let Some(uvs) = uvs {
+            write_st(w, uvs, triangles, points)?;
+        }
         writeln!(w, "        point3f[] points.timeSamples = {{")?;
         Ok(Self {
             file,
@@ -157,6 +162,37 @@ impl UsdaStream {
         w.seek(SeekFrom::End(0))?;
         self.file.commit()
     }
+}
+
+/// The texture coordinates as the `st` primvar: per vertex when each vertex has one UV, else
+/// per face corner through an index array (seams kept).
+fn write_st(
+    w: &mut dyn Write,
+    uvs: &TextureCoordinates,
+    triangles: &[[u32; 3]],
+    points: usize,
+) -> std::io::Result<()> {
+    let values: Vec<String> = uvs
+        .coordinates
+        .iter()
+        .map(|[u, v]| format!("({}, {})", *u as f32, *v as f32))
+        .collect();
+    let per_vertex = uvs.is_per_vertex(triangles, points);
+    let interpolation = if per_vertex { "vertex" } else { "faceVarying" };
+    writeln!(
+        w,
+        "        texCoord2f[] primvars:st = [{}] (\n            interpolation = \"{interpolation}\"\n        )",
+        values.join(", ")
+    )?;
+    if !per_vertex {
+        let indices: Vec<String> = uvs.corners.iter().flatten().map(u32::to_string).collect();
+        writeln!(
+            w,
+            "        int[] primvars:st:indices = [{}]",
+            indices.join(", ")
+        )?;
+    }
+    Ok(())
 }
 
 /// The header's time range, each number padded to a fixed width so that the final values can

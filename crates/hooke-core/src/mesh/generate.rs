@@ -5,7 +5,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::Mesh;
+use super::{Mesh, TextureCoordinates};
 
 /// The plane a generated sheet lies in; the first named axis is the "columns" direction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -26,6 +26,17 @@ impl GridPlane {
                 Self::Xy => DVec3::new(u, -v, 0.0),
             }
     }
+
+    /// The texture coordinates of sheet point `(u, v)` of a `size` sheet: 0..1 across, with
+    /// `t` growing upwards on a hanging curtain so that an image is not drawn upside down.
+    fn texture(self, u: f64, v: f64, size: [f64; 2]) -> [f64; 2] {
+        let s = u / size[0] + 0.5;
+        let t = v / size[1] + 0.5;
+        match self {
+            Self::Xz => [s, t],
+            Self::Xy => [s, 1.0 - t],
+        }
+    }
 }
 
 /// A regular grid of `columns x rows` vertices spanning `size` metres, centred on `center`.
@@ -38,11 +49,13 @@ pub fn grid(columns: u32, rows: u32, size: [f64; 2], plane: GridPlane, center: D
         "a grid needs at least 2x2 vertices"
     );
     let mut positions = Vec::with_capacity((columns * rows) as usize);
+    let mut coordinates = Vec::with_capacity((columns * rows) as usize);
     for row in 0..rows {
         for col in 0..columns {
             let u = (f64::from(col) / f64::from(columns - 1) - 0.5) * size[0];
             let v = (f64::from(row) / f64::from(rows - 1) - 0.5) * size[1];
             positions.push(plane.place(u, v, center));
+            coordinates.push(plane.texture(u, v, size));
         }
     }
     let mut triangles = Vec::with_capacity(2 * ((columns - 1) * (rows - 1)) as usize);
@@ -57,8 +70,10 @@ pub fn grid(columns: u32, rows: u32, size: [f64; 2], plane: GridPlane, center: D
         }
     }
     Mesh {
+        uvs: Some(TextureCoordinates::per_vertex(coordinates, &triangles)),
         positions,
         triangles,
+        ..Mesh::default()
     }
 }
 
@@ -125,17 +140,23 @@ pub fn irregular(
         .map(|p| delaunator::Point { x: p.x, y: p.y })
         .collect();
     let triangulation = delaunator::triangulate(&delaunay_points);
-    let triangles = triangulation
+    let triangles: Vec<[u32; 3]> = triangulation
         .triangles
         .chunks_exact(3)
         .map(|t| [t[0] as u32, t[1] as u32, t[2] as u32])
+        .collect();
+    let coordinates = points
+        .iter()
+        .map(|p| plane.texture(p.x, p.y, size))
         .collect();
     Mesh {
         positions: points
             .iter()
             .map(|p| plane.place(p.x, p.y, center))
             .collect(),
+        uvs: Some(TextureCoordinates::per_vertex(coordinates, &triangles)),
         triangles,
+        ..Mesh::default()
     }
 }
 

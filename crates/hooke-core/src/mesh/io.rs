@@ -13,7 +13,7 @@ use ply_rs_bw::ply::{
 };
 use ply_rs_bw::writer::Writer;
 
-use super::{Mesh, MeshError, MeshWarning};
+use super::{Mesh, MeshError, MeshWarning, TextureCoordinates};
 
 /// Why a mesh file could not be loaded. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +77,7 @@ pub fn parse_mesh(
     format: MeshFormat,
     name: &str,
 ) -> Result<(Mesh, Vec<MeshWarning>), MeshLoadError> {
-    let mesh = match format {
+    let (mesh, mut warnings) = match format {
         MeshFormat::Obj => {
             super::obj::parse_obj(&String::from_utf8_lossy(bytes)).map_err(|error| {
                 MeshLoadError::Parse {
@@ -87,9 +87,9 @@ pub fn parse_mesh(
                 }
             })?
         }
-        MeshFormat::Ply => load_ply(bytes, name)?,
+        MeshFormat::Ply => (load_ply(bytes, name)?, Vec::new()),
     };
-    let warnings = mesh.validate(name)?;
+    warnings.extend(mesh.validate(name)?);
     Ok((mesh, warnings))
 }
 
@@ -196,6 +196,8 @@ fn load_ply(bytes: &[u8], name: &str) -> Result<Mesh, MeshLoadError> {
         ));
     }
 
+    let mut per_vertex_uvs = read_vertex_extras(&ply, &mut mesh, &parse_error)?;
+
     let faces = ply
         .payload
         .get("face")
@@ -218,7 +220,67 @@ fn load_ply(bytes: &[u8], name: &str) -> Result<Mesh, MeshLoadError> {
         }
         fan_triangulate(&polygon, &mut mesh.triangles);
     }
+    if let Some(coordinates) = per_vertex_uvs.take() {
+        mesh.uvs = Some(TextureCoordinates::per_vertex(coordinates, &mesh.triangles));
+    }
     Ok(mesh)
+}
+
+/// The names a PLY vertex's texture coordinates go by, in the order they are looked for
+/// (Blender and MeshLab write `s t`; others `u v` or `texture_u texture_v`).
+const UV_NAMES: [[&str; 2]; 4] = [
+    ["s", "t"],
+    ["u", "v"],
+    ["texture_u", "texture_v"],
+    ["texture_s", "texture_t"],
+];
+
+/// Reads a PLY vertex element's texture coordinates (the first pair of [`UV_NAMES`] it has)
+/// into `Some(coordinates)`, and its other scalar properties into `mesh.vertex_properties`.
+fn read_vertex_extras(
+    ply: &Ply<DefaultElement>,
+    mesh: &mut Mesh,
+    parse_error: &dyn Fn(String) -> MeshLoadError,
+) -> Result<Option<Vec<[f64; 2]>>, MeshLoadError> {
+    let Some(definition) = ply.header.elements.get("vertex") else {
+        return Ok(None);
+    };
+    let vertices = ply.payload.get("vertex").map_or(&[][..], Vec::as_slice);
+    let scalars: Vec<&str> = definition
+        .properties
+        .values()
+        .filter(|p| matches!(p.data_type, PropertyType::Scalar(_)))
+        .map(|p| p.name.as_str())
+        .collect();
+    let uv_pair = UV_NAMES
+        .iter()
+        .find(|pair| pair.iter().all(|n| scalars.contains(n)));
+    let column = |name: &str| -> Result<Vec<f64>, MeshLoadError> {
+        vertices
+            .iter()
+            .enumerate()
+            .map(|(index, vertex)| {
+                vertex.get(name).and_then(scalar_as_f64).ok_or_else(|| {
+                    parse_error(format!("vertex {index} has no numeric '{name}' property"))
+                })
+            })
+            .collect()
+    };
+    let uvs = match uv_pair {
+        Some([u, v]) => {
+            let (us, vs) = (column(u)?, column(v)?);
+            Some(us.into_iter().zip(vs).map(|(u, v)| [u, v]).collect())
+        }
+        None => None,
+    };
+    for name in scalars {
+        let is_uv = uv_pair.is_some_and(|pair| pair.contains(&name));
+        if !is_uv && !["x", "y", "z"].contains(&name) {
+            mesh.vertex_properties
+                .insert(name.to_owned(), column(name)?);
+        }
+    }
+    Ok(uvs)
 }
 
 fn scalar_as_f64(property: &Property) -> Option<f64> {
@@ -287,16 +349,29 @@ pub fn read_ply_state(path: &Path) -> Result<crate::State, MeshLoadError> {
     Ok(state)
 }
 
-/// Writes one simulation frame (float32 positions + faces) as binary PLY, atomically.
+/// Writes one simulation frame (float32 positions + faces) as binary PLY, atomically, with
+/// texture coordinates `s t` when each vertex has one.
 pub fn write_ply_frame(
     path: &Path,
     positions: &[DVec3],
     triangles: &[[u32; 3]],
+    uvs: Option<&TextureCoordinates>,
 ) -> std::io::Result<()> {
-    let vertex_properties = ["x", "y", "z"].map(|n| (n, ScalarType::Float));
-    let vertices = positions.iter().map(|p| {
+    let per_vertex = uvs
+        .filter(|uvs| uvs.is_per_vertex(triangles, positions.len()))
+        .map(|uvs| uvs.coordinates.as_slice());
+    let names: &[&str] = if per_vertex.is_some() {
+        &["x", "y", "z", "s", "t"]
+    } else {
+        &["x", "y", "z"]
+    };
+    let vertex_properties: Vec<(&str, ScalarType)> =
+        names.iter().map(|n| (*n, ScalarType::Float)).collect();
+    let vertices = positions.iter().enumerate().map(|(i, p)| {
         let mut element = DefaultElement::new();
-        for (name, value) in ["x", "y", "z"].iter().zip(p.to_array()) {
+        let uv = per_vertex.map(|c| c[i]).unwrap_or_default();
+        let values = p.to_array().into_iter().chain(uv);
+        for (name, value) in names.iter().zip(values) {
             element.insert((*name).to_owned(), Property::Float(value as f32));
         }
         element
@@ -435,11 +510,26 @@ mod tests {
     }
 
     #[test]
+    fn ply_texture_coordinates_and_other_vertex_properties_are_kept() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                    property float z\nproperty float u\nproperty float v\nproperty double stiffness\n\
+                    property uchar red\nelement face 1\nproperty list uchar int vertex_indices\n\
+                    end_header\n0 0 0 0 0 2.5 255\n1 0 0 1 0 1 0\n0 1 0 0 1 1 7\n3 0 1 2\n";
+        let (mesh, _) = parse_mesh(text.as_bytes(), MeshFormat::Ply, "uv.ply").expect("loads");
+        let uvs = mesh.uvs.expect("u v");
+        assert_eq!(uvs.coordinates, vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+        assert!(uvs.is_per_vertex(&mesh.triangles, 3));
+        assert_eq!(mesh.vertex_properties["stiffness"], vec![2.5, 1.0, 1.0]);
+        assert_eq!(mesh.vertex_properties["red"], vec![255.0, 0.0, 7.0]);
+        assert_eq!(mesh.vertex_properties.len(), 2, "x y z u v are not extra");
+    }
+
+    #[test]
     fn truncated_binary_ply_is_an_error_not_a_panic() {
         let dir = tempfile::tempdir().expect("tempdir");
         let mesh = grid(3, 3, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
         let path = dir.path().join("frame.ply");
-        write_ply_frame(&path, &mesh.positions, &mesh.triangles).expect("write");
+        write_ply_frame(&path, &mesh.positions, &mesh.triangles, None).expect("write");
         let bytes = std::fs::read(&path).expect("read");
         std::fs::write(&path, &bytes[..bytes.len() - 7]).expect("truncate");
         assert!(load_mesh(&path).is_err());
@@ -450,9 +540,14 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let mesh = grid(4, 3, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
         let path = dir.path().join("frame.ply");
-        write_ply_frame(&path, &mesh.positions, &mesh.triangles).expect("write");
+        write_ply_frame(&path, &mesh.positions, &mesh.triangles, mesh.uvs.as_ref()).expect("write");
         let (loaded, _) = load_mesh(&path).expect("read back");
         assert_eq!(loaded.triangles, mesh.triangles);
+        let (written, read) = (mesh.uvs.expect("a grid has UVs"), loaded.uvs.expect("s t"));
+        for (a, b) in written.coordinates.iter().zip(&read.coordinates) {
+            assert!((a[0] - b[0]).abs() < 1e-7 && (a[1] - b[1]).abs() < 1e-7);
+        }
+        assert_eq!(read.corners, mesh.triangles);
         for (a, b) in loaded.positions.iter().zip(&mesh.positions) {
             // Frames store float32: exact to f32 rounding of values of order 1.
             assert!((*a - *b).length() < 1e-6);

@@ -1,7 +1,10 @@
 //! Triangle meshes: the surface a mass-spring system is built from.
 //!
 //! A [`Mesh`] is a flat list of vertex positions (metres) and triangles (vertex indices).
-//! Its unique edges become springs (paper Section 2), its vertices point masses.
+//! Its unique edges become springs (paper Section 2), its vertices point masses. What the
+//! simulation does not use but output needs is carried along: texture coordinates (written to
+//! OBJ and USD frames) and the file's other per-vertex numbers (which a scene can turn into
+//! masses or stiffnesses).
 
 mod generate;
 mod io;
@@ -14,6 +17,8 @@ pub use io::{
 };
 pub use obj::ObjError;
 
+use std::collections::BTreeMap;
+
 use glam::DVec3;
 
 /// A triangulated surface.
@@ -23,6 +28,38 @@ pub struct Mesh {
     pub positions: Vec<DVec3>,
     /// Triangles as indices into `positions`; length `n_triangles`.
     pub triangles: Vec<[u32; 3]>,
+    /// Texture coordinates, if the file had them (or the generator made them).
+    pub uvs: Option<TextureCoordinates>,
+    /// The file's other numeric per-vertex properties by name (a PLY `property float stiffness`,
+    /// say), each of length `n_vertices`.
+    pub vertex_properties: BTreeMap<String, Vec<f64>>,
+}
+
+/// Texture coordinates kept as the file has them: per triangle corner an index into
+/// `coordinates`, so a seam (one vertex, a UV on each side) survives.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TextureCoordinates {
+    /// `(u, v)` pairs.
+    pub coordinates: Vec<[f64; 2]>,
+    /// Per triangle, the coordinates of its three corners (indices into `coordinates`);
+    /// length `n_triangles`.
+    pub corners: Vec<[u32; 3]>,
+}
+
+impl TextureCoordinates {
+    /// One UV per vertex (PLY `s t`): vertex `i` has `coordinates[i]`.
+    pub fn per_vertex(coordinates: Vec<[f64; 2]>, triangles: &[[u32; 3]]) -> Self {
+        Self {
+            coordinates,
+            corners: triangles.to_vec(),
+        }
+    }
+
+    /// Whether every vertex has one UV, `coordinates[vertex]` (USD's "vertex" interpolation,
+    /// PLY's `s t`), rather than one per triangle corner ("faceVarying").
+    pub fn is_per_vertex(&self, triangles: &[[u32; 3]], vertex_count: usize) -> bool {
+        self.coordinates.len() == vertex_count && self.corners == triangles
+    }
 }
 
 /// Something wrong with a mesh that makes it unusable as a mass-spring system.
@@ -51,6 +88,20 @@ pub enum MeshError {
         triangle: usize,
         reason: String,
     },
+    #[error("{source_name}: texture coordinates: {message}")]
+    TextureCoordinates {
+        source_name: String,
+        message: String,
+    },
+    #[error(
+        "{source_name}: vertex property '{name}' has {found} values for {vertex_count} vertices"
+    )]
+    VertexPropertyLength {
+        source_name: String,
+        name: String,
+        found: usize,
+        vertex_count: usize,
+    },
     #[error(
         "{source_name}: edge {a}-{b} has zero length (both vertices at {position:?}); a spring needs a rest length"
     )]
@@ -69,6 +120,8 @@ pub enum MeshWarning {
     NonManifoldEdge { a: u32, b: u32, triangle_count: u32 },
     /// Vertices no triangle uses: free point masses without springs.
     UnreferencedVertices { count: usize, first: u32 },
+    /// Some faces have texture coordinates and some have none, so the mesh has none.
+    PartialTextureCoordinates { triangles_without: usize },
 }
 
 impl std::fmt::Display for MeshWarning {
@@ -85,6 +138,10 @@ impl std::fmt::Display for MeshWarning {
             Self::UnreferencedVertices { count, first } => write!(
                 f,
                 "{count} vertices are used by no triangle (first: vertex {first}); they fall freely"
+            ),
+            Self::PartialTextureCoordinates { triangles_without } => write!(
+                f,
+                "{triangles_without} triangles have no texture coordinates while others do; the output will have no UVs"
             ),
         }
     }
@@ -202,6 +259,7 @@ impl Mesh {
                 referenced[i as usize] = true;
             }
         }
+        self.validate_extras(&source_name)?;
         let mut warnings: Vec<MeshWarning> = self
             .edges()
             .into_iter()
@@ -220,6 +278,57 @@ impl Mesh {
             });
         }
         Ok(warnings)
+    }
+
+    /// Checks the texture coordinates and vertex properties against the triangles and vertices.
+    fn validate_extras(&self, source_name: &str) -> Result<(), MeshError> {
+        let vertex_count = self.positions.len();
+        for (name, values) in &self.vertex_properties {
+            if values.len() != vertex_count {
+                return Err(MeshError::VertexPropertyLength {
+                    source_name: source_name.to_owned(),
+                    name: name.clone(),
+                    found: values.len(),
+                    vertex_count,
+                });
+            }
+        }
+        let Some(uvs) = &self.uvs else {
+            return Ok(());
+        };
+        let error = |message: String| MeshError::TextureCoordinates {
+            source_name: source_name.to_owned(),
+            message,
+        };
+        if uvs.corners.len() != self.triangles.len() {
+            return Err(error(format!(
+                "{} triangles have UVs, the mesh has {}",
+                uvs.corners.len(),
+                self.triangles.len()
+            )));
+        }
+        if let Some(k) = uvs
+            .coordinates
+            .iter()
+            .position(|c| !c.iter().all(|x| x.is_finite()))
+        {
+            return Err(error(format!(
+                "coordinate {k} is not finite: {:?}",
+                uvs.coordinates[k]
+            )));
+        }
+        let count = uvs.coordinates.len();
+        if let Some((triangle, index)) = uvs
+            .corners
+            .iter()
+            .enumerate()
+            .find_map(|(t, c)| c.iter().find(|i| **i as usize >= count).map(|i| (t, *i)))
+        {
+            return Err(error(format!(
+                "triangle {triangle} uses coordinate {index}, out of range (there are {count})"
+            )));
+        }
+        Ok(())
     }
 
     /// Per-vertex valence (number of unique incident edges).
@@ -265,6 +374,7 @@ mod tests {
                 DVec3::new(0.0, 0.0, 1.0),
             ],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..Mesh::default()
         }
     }
 

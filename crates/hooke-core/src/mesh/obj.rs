@@ -5,16 +5,17 @@
 //! We read OBJ ourselves because the crates renumber or give up: tobj numbers positions by their
 //! first use in a face, per object, and obj-rs panics (`unimplemented!`) on free-form statements.
 //!
-//! Read: `v x y z [w | r g b]` in float64, `f` with every corner form (`v`, `v/vt`, `v//vn`,
-//! `v/vt/vn`, negative indices counting back from the last vertex so far), polygons split into
-//! triangle fans, `\` line continuations and `#` comments. Every other statement (`vt`, `vn`,
-//! `o`, `g`, `s`, `usemtl`, `mtllib`, `l`, `p`, free-form geometry) is ignored: a surface needs
-//! only positions and faces. Faces may name vertices defined further down the file. Errors name
-//! the line.
+//! Read: `v x y z [w | r g b]` in float64, `vt u [v [w]]`, `f` with every corner form (`v`,
+//! `v/vt`, `v//vn`, `v/vt/vn`, negative indices counting back from the last vertex or texture
+//! coordinate so far), polygons split into triangle fans, `\` line continuations and `#`
+//! comments. The faces' texture coordinates are kept per corner, seams included; if only some
+//! faces have them, the mesh has none and a warning says so. Every other statement (`vn`, `o`,
+//! `g`, `s`, `usemtl`, `mtllib`, `l`, `p`, free-form geometry) is ignored. Faces may name
+//! vertices defined further down the file. Errors name the line.
 
 use glam::DVec3;
 
-use super::Mesh;
+use super::{Mesh, MeshWarning, TextureCoordinates};
 
 /// A syntax error and the (1-based) line it is on.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -23,12 +24,17 @@ pub struct ObjError {
     pub message: String,
 }
 
-/// Parses OBJ text into a mesh with the file's vertex order. The mesh is not validated yet.
-pub fn parse_obj(text: &str) -> Result<Mesh, ObjError> {
+/// Parses OBJ text into a mesh with the file's vertex order, and a warning if only some faces
+/// have texture coordinates. The mesh is not validated yet.
+pub fn parse_obj(text: &str) -> Result<(Mesh, Vec<MeshWarning>), ObjError> {
     let mut mesh = Mesh::default();
     // The line of each triangle, to name it if an index turns out to be beyond the last vertex.
     let mut triangle_lines: Vec<usize> = Vec::new();
     let mut polygon: Vec<u32> = Vec::new();
+    let mut coordinates: Vec<[f64; 2]> = Vec::new();
+    // Per triangle, its corners' texture coordinates if the face gave them.
+    let mut corner_uvs: Vec<Option<[u32; 3]>> = Vec::new();
+    let mut polygon_uvs: Vec<u32> = Vec::new();
     for (line, statement) in statements(text) {
         let error = |message: String| ObjError { line, message };
         let mut words = statement.split_whitespace();
@@ -49,14 +55,34 @@ pub fn parse_obj(text: &str) -> Result<Mesh, ObjError> {
                 }
                 mesh.positions.push(DVec3::from_array(coordinates));
             }
+            Some("vt") => {
+                let numbers: Vec<&str> = words.collect();
+                if !(1..=3).contains(&numbers.len()) {
+                    return Err(error(format!(
+                        "a texture coordinate needs u (and optionally v and w), found {} numbers",
+                        numbers.len()
+                    )));
+                }
+                let mut uv = [0.0; 2];
+                for (value, word) in uv.iter_mut().zip(&numbers) {
+                    *value = word
+                        .parse::<f64>()
+                        .map_err(|_| error(format!("'{word}' is not a number")))?;
+                }
+                coordinates.push(uv);
+            }
             Some("f") => {
                 polygon.clear();
+                polygon_uvs.clear();
+                let mut corners = 0;
                 for corner in words {
-                    polygon.push(
-                        corner_index(corner, mesh.positions.len()).map_err(|message| {
-                            error(format!("face corner '{corner}': {message}"))
-                        })?,
-                    );
+                    corners += 1;
+                    let (vertex, uv) =
+                        corner_indices(corner, mesh.positions.len(), coordinates.len()).map_err(
+                            |message| error(format!("face corner '{corner}': {message}")),
+                        )?;
+                    polygon.push(vertex);
+                    polygon_uvs.extend(uv);
                 }
                 if polygon.len() < 3 {
                     return Err(error(format!(
@@ -66,7 +92,15 @@ pub fn parse_obj(text: &str) -> Result<Mesh, ObjError> {
                 }
                 let before = mesh.triangles.len();
                 super::io::fan_triangulate(&polygon, &mut mesh.triangles);
-                triangle_lines.resize(triangle_lines.len() + mesh.triangles.len() - before, line);
+                let added = mesh.triangles.len() - before;
+                triangle_lines.resize(triangle_lines.len() + added, line);
+                if polygon_uvs.len() == corners {
+                    let mut fan = Vec::with_capacity(added);
+                    super::io::fan_triangulate(&polygon_uvs, &mut fan);
+                    corner_uvs.extend(fan.into_iter().map(Some));
+                } else {
+                    corner_uvs.resize(corner_uvs.len() + added, None);
+                }
             }
             _ => {}
         }
@@ -83,7 +117,31 @@ pub fn parse_obj(text: &str) -> Result<Mesh, ObjError> {
             });
         }
     }
-    Ok(mesh)
+    let mut warnings = Vec::new();
+    let without = corner_uvs.iter().filter(|c| c.is_none()).count();
+    if without == 0 && !corner_uvs.is_empty() {
+        let count = coordinates.len();
+        for (corners, line) in corner_uvs.iter().flatten().zip(&triangle_lines) {
+            if let Some(index) = corners.iter().find(|i| **i as usize >= count) {
+                return Err(ObjError {
+                    line: *line,
+                    message: format!(
+                        "face uses texture coordinate {} but the file has {count}",
+                        u64::from(*index) + 1
+                    ),
+                });
+            }
+        }
+        mesh.uvs = Some(TextureCoordinates {
+            coordinates,
+            corners: corner_uvs.into_iter().flatten().collect(),
+        });
+    } else if without < corner_uvs.len() {
+        warnings.push(MeshWarning::PartialTextureCoordinates {
+            triangles_without: without,
+        });
+    }
+    Ok((mesh, warnings))
 }
 
 /// The statements of an OBJ file with the line each starts on: comments removed, lines ending
@@ -115,31 +173,45 @@ fn statements(text: &str) -> impl Iterator<Item = (usize, String)> + '_ {
     })
 }
 
-/// The 0-based vertex index of a face corner (`v`, `v/vt`, `v//vn` or `v/vt/vn`), given how many
-/// vertices precede it (what a negative index counts back from).
-fn corner_index(corner: &str, vertices_so_far: usize) -> Result<u32, String> {
-    let text = corner.split('/').next().unwrap_or("");
+/// The 0-based vertex and texture coordinate indices of a face corner (`v`, `v/vt`, `v//vn` or
+/// `v/vt/vn`), given how many of each precede it (what a negative index counts back from).
+fn corner_indices(
+    corner: &str,
+    vertices_so_far: usize,
+    uvs_so_far: usize,
+) -> Result<(u32, Option<u32>), String> {
+    let mut parts = corner.split('/');
+    let vertex = index(parts.next().unwrap_or(""), vertices_so_far, "vertex")?;
+    let uv = match parts.next() {
+        None | Some("") => None,
+        Some(text) => Some(index(text, uvs_so_far, "texture coordinate")?),
+    };
+    Ok((vertex, uv))
+}
+
+/// A 1-based (or negative, counting back from `so_far`) OBJ index of a `what`, 0-based.
+fn index(text: &str, so_far: usize, what: &str) -> Result<u32, String> {
     let index: i64 = text
         .parse()
-        .map_err(|_| "the vertex index is not an integer".to_owned())?;
+        .map_err(|_| format!("the {what} index is not an integer"))?;
     let zero_based = match index {
-        0 => return Err("vertex indices start at 1".to_owned()),
+        0 => return Err(format!("{what} indices start at 1")),
         i if i > 0 => i - 1,
         i => {
             let back = i.unsigned_abs();
-            if back > vertices_so_far as u64 {
+            if back > so_far as u64 {
                 return Err(format!(
-                    "counts back {back} vertices but only {vertices_so_far} precede it"
+                    "counts back {back} {what}s but only {so_far} precede it"
                 ));
             }
-            vertices_so_far as i64 - back as i64
+            so_far as i64 - back as i64
         }
     };
-    // The last u32 is kept free so that a vertex count always fits in a u32 as well.
+    // The last u32 is kept free so that a count always fits in a u32 as well.
     u32::try_from(zero_based)
         .ok()
         .filter(|i| *i < u32::MAX)
-        .ok_or_else(|| format!("vertex index {index} is beyond what hooke supports"))
+        .ok_or_else(|| format!("{what} index {index} is beyond what hooke supports"))
 }
 
 #[cfg(test)]
@@ -148,7 +220,8 @@ mod tests {
 
     #[test]
     fn vertices_keep_the_files_order_whatever_order_faces_use_them() {
-        let mesh = parse_obj("v 1 0 0\nv 0 1 0\nv 0 0 1\nv 2 2 2\nf 3 1 2\nf 2 4 3\n").unwrap();
+        let (mesh, _) =
+            parse_obj("v 1 0 0\nv 0 1 0\nv 0 0 1\nv 2 2 2\nf 3 1 2\nf 2 4 3\n").unwrap();
         assert_eq!(mesh.positions[0], DVec3::new(1.0, 0.0, 0.0));
         assert_eq!(mesh.positions[3], DVec3::new(2.0, 2.0, 2.0));
         assert_eq!(mesh.triangles, vec![[2, 0, 1], [1, 3, 2]]);
@@ -158,22 +231,44 @@ mod tests {
     fn every_corner_form_and_negative_indices_name_the_same_vertices() {
         let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
                     f 1 2 3\nf 1/1 2/1 3/1\nf 1//1 2//1 3//1\nf 1/1/1 2/1/1 3/1/1\nf -3 -2 -1\n";
-        let mesh = parse_obj(text).unwrap();
+        let (mesh, warnings) = parse_obj(text).unwrap();
         assert_eq!(mesh.triangles, vec![[0, 1, 2]; 5]);
+        assert_eq!(
+            warnings,
+            vec![MeshWarning::PartialTextureCoordinates {
+                triangles_without: 3
+            }]
+        );
+        assert_eq!(mesh.uvs, None);
     }
 
     #[test]
     fn continuations_comments_and_other_statements_are_handled() {
         let text = "# a quad\nmtllib a.mtl\no sheet\nv 0 0 0 # origin\nv 1 0 0\nv 1 1 0\n\
                     v 0 1 0 1.0\ng top\ns off\nusemtl red\nl 1 2\nf 1 2 \\\n 3 4\n";
-        let mesh = parse_obj(text).unwrap();
+        let (mesh, _) = parse_obj(text).unwrap();
         assert_eq!(mesh.positions.len(), 4);
         assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
     }
 
     #[test]
+    fn texture_coordinates_are_kept_per_corner_with_seams() {
+        // A quad whose two triangles give vertex 3 (the shared corner) different UVs: a seam.
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                    vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1 0\nvt 0.5\n\
+                    f 1/1/1 2/2/1 3/3/1\nf 1/1 3/-1 4/4\n";
+        let (mesh, warnings) = parse_obj(text).unwrap();
+        assert!(warnings.is_empty());
+        let uvs = mesh.uvs.expect("uvs");
+        assert_eq!(uvs.coordinates[3], [0.0, 1.0]);
+        assert_eq!(uvs.coordinates[4], [0.5, 0.0], "v defaults to 0");
+        assert_eq!(uvs.corners, vec![[0, 1, 2], [0, 4, 3]]);
+        assert!(!uvs.is_per_vertex(&mesh.triangles, 4));
+    }
+
+    #[test]
     fn faces_may_name_vertices_defined_later() {
-        let mesh = parse_obj("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+        let (mesh, _) = parse_obj("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
         assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
     }
 
@@ -200,6 +295,18 @@ mod tests {
                 "beyond what hooke supports",
             ),
             ("v 0 0 0\nf 1 2 a/1\n", 2, "not an integer"),
+            ("vt 0.5 x\n", 1, "'x' is not a number"),
+            ("vt\n", 1, "found 0 numbers"),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/-2 3/1\n",
+                5,
+                "counts back 2 texture coordinates",
+            ),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/4\n",
+                5,
+                "texture coordinate 4 but the file has 1",
+            ),
         ];
         for (text, line, message) in cases {
             let error = parse_obj(text).unwrap_err();

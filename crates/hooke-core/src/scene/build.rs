@@ -53,21 +53,35 @@ impl SceneFile {
         };
 
         let material = &self.material;
+        // The masses a vertex property gives replace a placeholder once the model is built.
+        let mass_property = material
+            .mass
+            .property
+            .as_deref()
+            .map(|name| vertex_property(&mesh, name, "material.mass.property", &invalid))
+            .transpose()?;
         let mass = match (
             material.mass.total,
             material.mass.per_vertex,
             material.mass.area_density,
+            &mass_property,
         ) {
-            (Some(total), None, None) => MassModel::TotalUniform(total),
-            (None, Some(m), None) => MassModel::PerVertex(m),
-            (None, None, Some(rho)) => MassModel::AreaDensity(rho),
+            (Some(total), None, None, None) => MassModel::TotalUniform(total),
+            (None, Some(m), None, None) => MassModel::PerVertex(m),
+            (None, None, Some(rho), None) => MassModel::AreaDensity(rho),
+            (None, None, None, Some(_)) => MassModel::PerVertex(1.0),
             _ => {
                 return Err(invalid(
                     "material.mass",
-                    "give exactly one of total, per_vertex or area_density".into(),
+                    "give exactly one of total, per_vertex, area_density or property".into(),
                 ));
             }
         };
+        let stiffness_factors = material
+            .stiffness_property
+            .as_deref()
+            .map(|name| vertex_property(&mesh, name, "material.stiffness_property", &invalid))
+            .transpose()?;
         for (field, value) in [
             ("material.mass.total", material.mass.total),
             ("material.mass.per_vertex", material.mass.per_vertex),
@@ -108,6 +122,14 @@ impl SceneFile {
         };
         let mut model =
             Model::from_mesh(&mesh, &options).map_err(|e| invalid("material", e.to_string()))?;
+        if let Some(masses) = mass_property {
+            model.masses = masses;
+        }
+        if let Some(factors) = stiffness_factors {
+            for (k, [a, b]) in model.stiffnesses.iter_mut().zip(&model.spring_ends) {
+                *k *= 0.5 * (factors[*a as usize] + factors[*b as usize]);
+            }
+        }
 
         let (control, collision) = self.build_inputs(&mesh, &invalid)?;
         model.collision = collision;
@@ -138,6 +160,42 @@ impl SceneFile {
         scene.set_time_step(self.simulation.dt, path, allow_unstable)?;
         Ok(scene)
     }
+}
+
+/// The mesh's per-vertex property `name`, every value positive and finite; `field` is the
+/// scene key that named it.
+fn vertex_property(
+    mesh: &Mesh,
+    name: &str,
+    field: &str,
+    invalid: &dyn Fn(&str, String) -> SceneError,
+) -> Result<Vec<f64>, SceneError> {
+    let values = mesh.vertex_properties.get(name).ok_or_else(|| {
+        let known: Vec<&str> = mesh.vertex_properties.keys().map(String::as_str).collect();
+        invalid(
+            field,
+            if known.is_empty() {
+                format!(
+                    "the mesh has no vertex property '{name}' (it has none; PLY files can carry them)"
+                )
+            } else {
+                format!(
+                    "the mesh has no vertex property '{name}' (it has: {})",
+                    known.join(", ")
+                )
+            },
+        )
+    })?;
+    if let Some(vertex) = values.iter().position(|v| !(*v > 0.0 && v.is_finite())) {
+        return Err(invalid(
+            field,
+            format!(
+                "'{name}' must be a positive number at every vertex, found {} at vertex {vertex}",
+                values[vertex]
+            ),
+        ));
+    }
+    Ok(values.clone())
 }
 
 impl Scene {

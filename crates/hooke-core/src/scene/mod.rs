@@ -111,6 +111,7 @@ impl SceneFile {
                 },
                 stiffness: 0.25 * mass / (dt * dt),
                 stiffness_model: StiffnessKind::Uniform,
+                stiffness_property: None,
                 damping: 0.01 * mass / dt,
                 rest_length_scale: 1.0,
             },

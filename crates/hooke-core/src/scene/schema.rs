@@ -198,6 +198,10 @@ pub struct MassSection {
     pub per_vertex: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub area_density: Option<f64>,
+    /// The name of a per-vertex property of the mesh file (a PLY `property float mass`) that
+    /// holds each vertex's mass in kg.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub property: Option<String>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -216,6 +220,11 @@ pub struct MaterialSection {
     pub stiffness: f64,
     #[serde(default)]
     pub stiffness_model: StiffnessKind,
+    /// The name of a per-vertex property of the mesh file (a PLY `property float stiffness`)
+    /// that scales the stiffness: a spring's `D` is multiplied by the mean of its two ends'
+    /// values, so a seam can be stiffer than the panel around it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness_property: Option<String>,
     /// Damping constant `c`, kg/s.
     #[serde(default)]
     pub damping: f64,

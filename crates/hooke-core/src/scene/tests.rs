@@ -278,3 +278,73 @@ fn a_non_finite_centre_or_an_absurd_size_is_refused_naming_the_field() {
         }
     }
 }
+
+/// A unit square as ASCII PLY with `mass` and `stiffness` per vertex, and the scene around it.
+fn scene_with_vertex_properties(material: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+               property float z\nproperty float mass\nproperty float stiffness\n\
+               element face 2\nproperty list uchar int vertex_indices\nend_header\n\
+               0 0 0 0.1 1\n1 0 0 0.2 3\n1 0 1 0.3 1\n0 0 1 0.4 1\n3 0 1 2\n3 0 2 3\n";
+    std::fs::write(dir.path().join("square.ply"), ply).expect("mesh");
+    let scene =
+        format!("[mesh]\ngenerator = \"file\"\npath = \"square.ply\"\n[material]\n{material}\n");
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, scene).expect("scene");
+    (dir, path)
+}
+
+#[test]
+fn masses_and_stiffness_factors_come_from_vertex_properties() {
+    let (_dir, path) = scene_with_vertex_properties(
+        "mass = { property = \"mass\" }\nstiffness = 10.0\nstiffness_property = \"stiffness\"",
+    );
+    let scene = SceneFile::load(&path)
+        .and_then(|f| f.build(&path, false))
+        .expect("builds");
+    assert_eq!(
+        scene.model.masses,
+        vec![0.1f32 as f64, 0.2f32 as f64, 0.3f32 as f64, 0.4f32 as f64]
+    );
+    for (k, [a, b]) in scene.model.spring_ends.iter().enumerate() {
+        // Vertex 1 is three times as stiff: its springs get the mean of 3 and 1.
+        let expected = if *a == 1 || *b == 1 { 20.0 } else { 10.0 };
+        assert_eq!(scene.model.stiffnesses[k], expected, "spring {a}-{b}");
+    }
+}
+
+#[test]
+fn a_missing_or_bad_vertex_property_names_the_field() {
+    let (_dir, path) =
+        scene_with_vertex_properties("mass = { property = \"density\" }\nstiffness = 10.0");
+    let message = SceneFile::load(&path)
+        .and_then(|f| f.build(&path, false))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.ends_with(
+            "material.mass.property: the mesh has no vertex property 'density' (it has: mass, stiffness)"
+        ),
+        "{message}"
+    );
+    let (_dir, path) = scene_with_vertex_properties(
+        "mass = { total = 1.0, property = \"mass\" }\nstiffness = 10.0",
+    );
+    let message = SceneFile::load(&path)
+        .and_then(|f| f.build(&path, false))
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("exactly one of"), "{message}");
+    let message = build(&CLOTH.replace(
+        "damping = 0.01",
+        "damping = 0.01\nstiffness_property = \"k\"",
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        message.contains(
+            "material.stiffness_property: the mesh has no vertex property 'k' (it has none"
+        ),
+        "{message}"
+    );
+}
