@@ -95,3 +95,72 @@ fn a_run_killed_while_writing_frames_leaves_no_torn_file() {
         assert_eq!(mesh.vertex_count(), VERTICES, "{}", frame.display());
     }
 }
+
+/// A run killed while it streams frames into one file (`.usda`, `.pc2`) leaves the file a
+/// previous run completed, byte for byte, or none: the frames so far are in the `.partial`.
+#[test]
+fn a_run_killed_while_streaming_leaves_the_previous_file_or_none() {
+    let scene = shipped_scene_path("bench-grid-128.toml");
+    for format in ["usda", "pc2"] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join(format!("cloth.{format}"));
+        let run = |steps: &str, frame_every: &str| {
+            let mut command = Command::new(env!("CARGO_BIN_EXE_hooke"));
+            command
+                .args(["run", scene.to_str().expect("utf-8"), "--steps", steps])
+                .args(["--frame-every", frame_every, "--output"])
+                .arg(&file)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null());
+            command
+        };
+        // Killed once several frames are in the temporary file.
+        let kill_midway = || {
+            // The previous kill's temporary would look like this run's progress.
+            for name in partials_in(dir.path()) {
+                std::fs::remove_file(dir.path().join(name)).expect("old partial removed");
+            }
+            let mut child = run("1000000", "1").spawn().expect("hooke starts");
+            let started = Instant::now();
+            let streamed = || {
+                std::fs::read_dir(dir.path())
+                    .expect("list")
+                    .map(|e| e.expect("entry"))
+                    .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+                    .map(|e| e.metadata().map_or(0, |m| m.len()))
+                    .max()
+                    .unwrap_or(0)
+            };
+            // Three frames of 16384 points: at least 12 bytes each.
+            while streamed() < 3 * 12 * VERTICES as u64
+                && started.elapsed() < Duration::from_secs(60)
+            {
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            child.kill().expect("SIGKILL");
+            child.wait().expect("reaped");
+            let size = streamed();
+            eprintln!("{format}: killed with {size} bytes streamed");
+            assert!(
+                size >= 3 * 12 * VERTICES as u64,
+                "{format}: the kill landed mid-stream"
+            );
+        };
+        kill_midway();
+        assert!(
+            !file.exists(),
+            "{format}: a killed first run leaves no file"
+        );
+        let status = run("20", "10").status().expect("hooke runs");
+        assert!(status.success(), "{format}: a complete run");
+        let complete = std::fs::read(&file).expect("the completed file");
+        kill_midway();
+        assert_eq!(
+            std::fs::read(&file).expect("still there"),
+            complete,
+            "{format}: the killed run left the previous file as it was"
+        );
+        assert!(dir.path().join("cloth.final-state.ply").exists());
+        assert!(dir.path().join("cloth.summary.json").exists());
+    }
+}

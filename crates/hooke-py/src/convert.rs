@@ -10,11 +10,12 @@ use pyo3::types::{PyBool, PyDict};
 use crate::errors::input;
 
 /// `value` as a numpy array whose dtype kind is one of `kinds` (numpy's letters: `f` float,
-/// `i` signed, `u` unsigned), with shape `(N, 3)`. `what` names it in errors.
+/// `i` signed, `u` unsigned), with shape `(N, columns)`. `what` names it in errors.
 fn checked_array<'py>(
     value: &Bound<'py, PyAny>,
     what: &str,
     kinds: &str,
+    columns: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
     let numpy = value.py().import("numpy")?;
     let array = numpy.call_method1("asarray", (value,))?;
@@ -27,37 +28,58 @@ fn checked_array<'py>(
         )));
     }
     let shape: Vec<usize> = array.getattr("shape")?.extract()?;
-    if shape.len() != 2 || shape[1] != 3 {
+    if shape.len() != 2 || shape[1] != columns {
         return Err(input(format!(
-            "{what} must have shape (N, 3), found {shape:?}"
+            "{what} must have shape (N, {columns}), found {shape:?}"
         )));
     }
     Ok(array)
 }
 
-/// An `(N, 3)` array of real numbers as vectors (read in place when it is contiguous float64).
-pub fn vectors(value: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<DVec3>> {
-    let array = checked_array(value, what, "fiu")?;
+/// An `(N, K)` array of finite real numbers as rows (read in place when it is contiguous
+/// float64).
+fn real_rows<const K: usize>(value: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[f64; K]>> {
+    let array = checked_array(value, what, "fiu", K)?;
     let numpy = value.py().import("numpy")?;
     let array: PyReadonlyArray2<'_, f64> = numpy
         .call_method1("ascontiguousarray", (array, "float64"))?
         .extract()?;
-    let vectors: Vec<DVec3> = array
+    let rows: Vec<[f64; K]> = array
         .as_array()
         .rows()
         .into_iter()
-        .map(|r| DVec3::new(r[0], r[1], r[2]))
+        .map(|r| std::array::from_fn(|k| r[k]))
         .collect();
-    if let Some(i) = vectors.iter().position(|v| !v.is_finite()) {
+    if let Some(i) = rows.iter().position(|r| !r.iter().all(|x| x.is_finite())) {
         return Err(input(format!("{what}: row {i} is not finite")));
     }
-    Ok(vectors)
+    Ok(rows)
+}
+
+/// An `(N, 3)` array of real numbers as vectors.
+pub fn vectors(value: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<DVec3>> {
+    Ok(real_rows::<3>(value, what)?
+        .into_iter()
+        .map(DVec3::from_array)
+        .collect())
+}
+
+/// An `(N, 2)` array of texture coordinates, one per vertex of `vertex_count`.
+pub fn uvs(value: &Bound<'_, PyAny>, vertex_count: usize) -> PyResult<Vec<[f64; 2]>> {
+    let uvs = real_rows::<2>(value, "uvs")?;
+    if uvs.len() != vertex_count {
+        return Err(input(format!(
+            "uvs must have one row per vertex ({vertex_count}), found {}",
+            uvs.len()
+        )));
+    }
+    Ok(uvs)
 }
 
 /// A `(T, 3)` array of vertex indices as triangles.
 pub fn triangles(value: &Bound<'_, PyAny>) -> PyResult<Vec<[u32; 3]>> {
     let what = "triangles";
-    let array = checked_array(value, what, "iu")?;
+    let array = checked_array(value, what, "iu", 3)?;
     let size: usize = array.getattr("size")?.extract()?;
     if size > 0 {
         let low: i128 = array.call_method0("min")?.extract()?;

@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 
 mod convert;
 mod errors;
+mod frames;
 mod simulation;
 
 pub use errors::{GpuError, HookeError, InputError, SimulationError};
@@ -54,6 +55,7 @@ fn springs<'py>(
     let mesh = hooke_core::mesh::Mesh {
         positions: vec![glam::DVec3::ZERO; vertex_count],
         triangles,
+        ..Default::default()
     };
     let ends: Vec<[u32; 2]> = mesh.edges().iter().map(|e| [e.a, e.b]).collect();
     Ok(convert::rows(py, &ends))
@@ -64,6 +66,7 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = module.py();
     module.add_class::<simulation::Simulation>()?;
     module.add_class::<simulation::Snapshot>()?;
+    module.add_class::<frames::FrameWriter>()?;
     module.add_function(wrap_pyfunction!(adapters, module)?)?;
     module.add_function(wrap_pyfunction!(springs, module)?)?;
     module.add("HookeError", py.get_type::<HookeError>())?;

@@ -6,6 +6,7 @@ use std::sync::{Mutex, MutexGuard};
 
 use glam::DVec3;
 use hooke::{OffscreenRun, SolverChoice};
+use hooke_core::mesh::{Mesh, TextureCoordinates};
 use hooke_core::scene::SceneFile;
 use hooke_core::{BallPush, Control, Drag, PointForce, State, Wind};
 use numpy::{PyArray2, PyArrayMethods};
@@ -52,6 +53,8 @@ impl Holder {
 pub struct Simulation {
     holder: Mutex<Option<Holder>>,
     name: String,
+    /// The mesh's texture coordinates, for the frames a `FrameWriter` writes.
+    uvs: Option<TextureCoordinates>,
 }
 
 impl std::fmt::Debug for Simulation {
@@ -79,6 +82,7 @@ fn open(scene: &hooke_core::scene::Scene, choice: SolverChoice) -> PyResult<Simu
     Ok(Simulation {
         holder: Mutex::new(Some(Holder::Bare(Box::new(simulation)))),
         name: scene.name.clone(),
+        uvs: scene.mesh.uvs.clone(),
     })
 }
 
@@ -116,13 +120,14 @@ impl Simulation {
     /// one per spring (in `springs(triangles)` order); give exactly one of `mass_total` (kg),
     /// `mass_per_vertex` (kg, a number or one per vertex) or `area_density` (kg/m^2).
     /// `colliders`, `wind` and `self_collision` are dicts (a list of them for colliders) with
-    /// the keys of the scene file's `[[collider]]`, `[wind]` and `[self_collision]`.
+    /// the keys of the scene file's `[[collider]]`, `[wind]` and `[self_collision]`. `uvs`, an
+    /// `(N, 2)` array of texture coordinates per vertex, goes into OBJ and USD frames.
     #[staticmethod]
     #[pyo3(signature = (
         vertices, triangles, *, stiffness, mass_total = None, mass_per_vertex = None,
         area_density = None, stiffness_model = "uniform", damping = 0.0, pins = None,
         select = None, dt = None, gravity = [0.0, -9.81, 0.0], wind = None, thickness = 0.0,
-        colliders = None, self_collision = None, backend = "cpu", method = None,
+        colliders = None, self_collision = None, uvs = None, backend = "cpu", method = None,
         accumulation = None, threads = None, allow_unstable = false
     ))]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of a Python call
@@ -143,6 +148,7 @@ impl Simulation {
         thickness: f64,
         colliders: Option<&Bound<'_, PyAny>>,
         self_collision: Option<&Bound<'_, PyAny>>,
+        uvs: Option<&Bound<'_, PyAny>>,
         backend: &str,
         method: Option<&str>,
         accumulation: Option<&str>,
@@ -151,9 +157,17 @@ impl Simulation {
     ) -> PyResult<Self> {
         use toml::Value;
         let choice = solver_choice(backend, method, accumulation, threads)?;
-        let mesh = hooke_core::mesh::Mesh {
-            positions: convert::vectors(vertices, "vertices")?,
-            triangles: convert::triangles(triangles)?,
+        let positions = convert::vectors(vertices, "vertices")?;
+        let triangles = convert::triangles(triangles)?;
+        let uvs = uvs
+            .map(|uvs| convert::uvs(uvs, positions.len()))
+            .transpose()?
+            .map(|uvs| TextureCoordinates::per_vertex(uvs, &triangles));
+        let mesh = Mesh {
+            positions,
+            triangles,
+            uvs,
+            ..Mesh::default()
         };
         let warnings = mesh.validate("arrays").or_raise()?;
         let stiffness = convert::per_item(stiffness, mesh.edges().len(), "stiffness")?;
@@ -256,7 +270,7 @@ impl Simulation {
 
     /// The scene's name.
     #[getter]
-    fn name(&self) -> &str {
+    pub(crate) fn name(&self) -> &str {
         &self.name
     }
 
@@ -410,7 +424,8 @@ impl Simulation {
     fn write_frame(&self, path: PathBuf) -> PyResult<()> {
         self.with(|s| {
             let state = s.state().or_raise()?;
-            hooke_core::mesh::write_ply_frame(&path, &state.positions, &s.model().triangles)
+            let triangles = &s.model().triangles;
+            hooke_core::mesh::write_ply_frame(&path, &state.positions, triangles, self.uvs())
                 .map_err(|e| input(format!("{}: {e}", path.display())))
         })
     }
@@ -800,7 +815,14 @@ impl Simulation {
     }
 
     /// Runs `f` on the simulation, holding its lock.
-    fn with<R>(&self, f: impl FnOnce(&mut hooke::Simulation) -> PyResult<R>) -> PyResult<R> {
+    pub(crate) fn uvs(&self) -> Option<&TextureCoordinates> {
+        self.uvs.as_ref()
+    }
+
+    pub(crate) fn with<R>(
+        &self,
+        f: impl FnOnce(&mut hooke::Simulation) -> PyResult<R>,
+    ) -> PyResult<R> {
         let mut guard = self.lock()?;
         let holder = guard
             .as_mut()

@@ -11,6 +11,8 @@ import pytest
 import trimesh
 from conftest import ROOT, hooke_binary, run_cli
 
+import hooke
+
 SIDE = 6
 STEPS = 120
 EVERY = 40
@@ -49,13 +51,37 @@ def shuffled_sheet(tmp_path: Path) -> tuple[Path, npt.NDArray[np.int64]]:
     return scene, order
 
 
+def grid_triangles(n: int) -> npt.NDArray[np.int64]:
+    """The triangles of an n x n grid numbered row by row, two per quad."""
+    return np.array(
+        [
+            t
+            for r in range(n - 1)
+            for c in range(n - 1)
+            for t in (
+                (r * n + c, (r + 1) * n + c, (r + 1) * n + c + 1),
+                (r * n + c, (r + 1) * n + c + 1, r * n + c + 1),
+            )
+        ]
+    )
+
+
 def ply_positions(path: Path) -> npt.NDArray[np.float32]:
-    """Positions of a binary PLY frame (float32 x, y, z per vertex)."""
+    """Positions of a binary PLY frame (float32 x, y, z, then maybe s, t, per vertex)."""
     data = path.read_bytes()
     end = data.index(b"end_header\n") + len(b"end_header\n")
     header = data[:end].decode("ascii").splitlines()
-    count = int(next(line for line in header if line.startswith("element vertex")).split()[2])
-    return np.frombuffer(data, dtype="<f4", count=3 * count, offset=end).reshape(count, 3)
+    start = next(k for k, line in enumerate(header) if line.startswith("element vertex"))
+    count = int(header[start].split()[2])
+    properties = []
+    for line in header[start + 1 :]:
+        if not line.startswith("property"):
+            break
+        properties.append(line.split())
+    assert all(p[1] == "float" for p in properties) and properties[0][2] == "x"
+    width = len(properties)
+    vertices = np.frombuffer(data, dtype="<f4", count=width * count, offset=end)
+    return vertices.reshape(count, width)[:, :3]
 
 
 def read_pc2(path: Path) -> npt.NDArray[np.float32]:
@@ -126,3 +152,65 @@ def test_no_frames_writes_no_frame_files(tmp_path: Path, fmt: str) -> None:
     )
     names = sorted(p.name for p in (tmp_path / "o").iterdir())
     assert names == ["final-state.ply", "final-state.toml", "summary.json"]
+
+
+def test_python_frame_writer_equals_the_cli_frames(tmp_path: Path) -> None:
+    scene, _ = shuffled_sheet(tmp_path)
+    cli = tmp_path / "cli"
+    run_cli("run", str(scene), "--output", str(cli / "cloth.pc2"), "--backend", "cpu")
+    expected = read_pc2(cli / "cloth.pc2")
+
+    sim = hooke.Simulation.from_scene(scene, backend="cpu")
+    with hooke.FrameWriter(sim, tmp_path / "py.pc2", frame_every=EVERY) as frames:
+        frames.write()
+        for _ in range(STEPS // EVERY):
+            sim.step(EVERY)
+            frames.write()
+        assert not (tmp_path / "py.pc2").exists(), "the file appears when closed"
+    np.testing.assert_array_equal(read_pc2(tmp_path / "py.pc2"), expected)
+
+    sim = hooke.Simulation.from_scene(scene, backend="cpu")
+    writer = hooke.FrameWriter(sim, tmp_path / "objs", format="obj")
+    writer.write()
+    sim.step(STEPS)
+    writer.write()
+    assert writer.close() == 2
+    last = trimesh.load_mesh(tmp_path / "objs" / f"frame-{STEPS:07}.obj", process=False)
+    np.testing.assert_array_equal(np.asarray(last.vertices, dtype=np.float32), expected[-1])
+
+
+def test_python_frame_writer_refuses_a_format_its_file_contradicts(tmp_path: Path) -> None:
+    sim = hooke.Simulation.from_scene(ROOT / "scenes" / "cloth-pinned.toml")
+    with pytest.raises(hooke.InputError, match=r"is a \.usda file but format is 'obj'"):
+        hooke.FrameWriter(sim, tmp_path / "a.usda", format="obj")
+    with pytest.raises(hooke.InputError, match="expected one of ply, obj, pc2, usda"):
+        hooke.FrameWriter(sim, tmp_path, format="fbx")  # type: ignore[arg-type]
+
+
+def test_ply_texture_coordinates_reach_the_obj_frames(tmp_path: Path) -> None:
+    """A PLY mesh with `s t` per vertex: trimesh reads the same UVs from the OBJ frames."""
+    n = 5
+    u, v = np.meshgrid(np.linspace(0.0, 1.0, n), np.linspace(0.0, 1.0, n))
+    positions = np.stack([u.ravel(), np.zeros(n * n), v.ravel()], axis=1)
+    uvs = np.stack([0.2 + 0.5 * u.ravel(), 1.0 - v.ravel()], axis=1)
+    faces = grid_triangles(n)
+    header = (
+        f"ply\nformat ascii 1.0\nelement vertex {n * n}\nproperty float x\nproperty float y\n"
+        f"property float z\nproperty float s\nproperty float t\nelement face {len(faces)}\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    )
+    rows = [f"{x} {y} {z} {s} {t}" for (x, y, z), (s, t) in zip(positions, uvs, strict=True)]
+    rows += [f"3 {a} {b} {c}" for a, b, c in faces]
+    (tmp_path / "sheet.ply").write_text(header + "\n".join(rows) + "\n")
+    scene = tmp_path / "scene.toml"
+    scene.write_text(
+        '[mesh]\ngenerator = "file"\npath = "sheet.ply"\n'
+        "[material]\nmass = { total = 0.05 }\nstiffness = 50.0\n"
+        '[pins]\nselect = ["corners"]\n[simulation]\ndt = "auto"\nsteps = 20\nframe_every = 20\n'
+    )
+    run_cli("run", str(scene), "--output", str(tmp_path / "obj"), "--output-format", "obj")
+    mesh = trimesh.load_mesh(tmp_path / "obj" / "frame-0000020.obj", process=False)
+    assert len(mesh.vertices) == n * n, "one UV per vertex: no vertex split"
+    assert isinstance(mesh.visual, trimesh.visual.TextureVisuals)
+    read = np.asarray(mesh.visual.uv, dtype=np.float64)
+    np.testing.assert_allclose(read, uvs, atol=1e-7)

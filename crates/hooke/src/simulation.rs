@@ -128,6 +128,7 @@ pub fn model_from_arrays(arrays: &Arrays<'_>) -> Result<Model, EngineError> {
             .map(|v| DVec3::from_array(*v))
             .collect(),
         triangles: arrays.triangles.to_vec(),
+        ..Mesh::default()
     };
     mesh.validate("arrays")?;
     let options = ModelOptions {

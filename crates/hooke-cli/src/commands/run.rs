@@ -28,7 +28,9 @@ pub struct RunArgs {
     /// Number of steps (default: the scene's simulation.steps).
     #[arg(long)]
     pub steps: Option<u64>,
-    /// Directory for frames and the final state (default: out/<scene name>).
+    /// Directory for frames and the final state (default: out/<scene name>); or, ending in
+    /// `.usda` or `.pc2`, the one file the frames go to, with the final state and summary
+    /// beside it (`cloth.usda`: `cloth.final-state.ply`, `cloth.summary.json`).
     #[arg(long)]
     pub output: Option<PathBuf>,
     /// Steps between written frames (default: the scene's simulation.frame_every).
@@ -37,12 +39,13 @@ pub struct RunArgs {
     /// Write only the final state, no frames.
     #[arg(long)]
     pub no_frames: bool,
-    /// Frame files: `ply` (frame-NNNNNNN.ply, binary), `obj` (frame-NNNNNNN.obj with normals,
-    /// an OBJ sequence), `pc2` (frames.pc2, Blender's point cache for the Mesh Cache modifier)
-    /// or `usda` (frames.usda, a USD stage with the colliders); the last two are renamed into
-    /// place when the run ends. Vertex order is always the mesh file's.
-    #[arg(long, default_value = "ply", value_parser = parse_frame_format)]
-    pub output_format: FrameFormat,
+    /// Frame files: `ply` (frame-NNNNNNN.ply, binary), `obj` (frame-NNNNNNN.obj with UVs and
+    /// normals, an OBJ sequence), `pc2` (frames.pc2, Blender's point cache for the Mesh Cache
+    /// modifier) or `usda` (frames.usda, a USD stage with UVs and the colliders); the last two
+    /// are renamed into place when the run ends. Vertex order is always the mesh file's.
+    /// Default: the `--output` file's extension, else `ply`.
+    #[arg(long, value_parser = parse_frame_format)]
+    pub output_format: Option<FrameFormat>,
     /// Run even if dt exceeds the stability bound.
     #[arg(long)]
     pub allow_unstable: bool,
@@ -78,6 +81,8 @@ struct Summary {
     max_strain: f64,
     frames_written: usize,
     output: PathBuf,
+    /// The state to `--resume` from (its `.toml` beside it).
+    final_state: PathBuf,
     /// Where the dynamic balls ended.
     balls: Vec<BallSummary>,
 }
@@ -90,14 +95,72 @@ struct BallSummary {
     velocity: [f64; 3],
 }
 
+/// Where a run's files go: a directory of frames, `final-state.ply` and `summary.json`, or one
+/// frames file (`cloth.usda`) with `cloth.final-state.ply` and `cloth.summary.json` beside it.
+struct OutputPlan {
+    directory: PathBuf,
+    /// The one frames file, when `--output` named it.
+    frames_file: Option<PathBuf>,
+    /// Put before the state's and summary's names: `cloth.` beside `cloth.usda`.
+    prefix: String,
+    format: FrameFormat,
+}
+
+impl OutputPlan {
+    fn new(args: &RunArgs, scene_name: &str) -> anyhow::Result<Self> {
+        let output = args
+            .output
+            .clone()
+            .unwrap_or_else(|| Path::new("out").join(scene_name));
+        let Some(file_format) = FrameFormat::of_single_file(&output) else {
+            return Ok(Self {
+                directory: output,
+                frames_file: None,
+                prefix: String::new(),
+                format: args.output_format.unwrap_or(FrameFormat::Ply),
+            });
+        };
+        if let Some(format) = args.output_format.filter(|f| *f != file_format) {
+            anyhow::bail!(
+                "--output {} is a .{} file but --output-format is {}",
+                output.display(),
+                file_format.name(),
+                format.name()
+            );
+        }
+        let directory = output
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."))
+            .to_owned();
+        let stem = output
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Ok(Self {
+            directory,
+            prefix: format!("{stem}."),
+            frames_file: Some(output),
+            format: file_format,
+        })
+    }
+
+    fn file(&self, name: &str) -> PathBuf {
+        self.directory.join(format!("{}{name}", self.prefix))
+    }
+
+    /// What the summary calls the output: the directory, or the frames file.
+    fn shown(&self) -> &Path {
+        self.frames_file.as_deref().unwrap_or(&self.directory)
+    }
+}
+
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let scene = load_scene(&args.scene, args.allow_unstable)?;
     let steps = args.steps.unwrap_or(scene.steps);
     let frame_every = args.frame_every.unwrap_or(scene.frame_every).max(1);
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(&scene.name));
+    let plan = OutputPlan::new(args, &scene.name)?;
+    let output = plan.directory.clone();
     std::fs::create_dir_all(&output)
         .with_context(|| format!("creating output directory {}", output.display()))?;
 
@@ -127,11 +190,15 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     let mut frames = FrameWriter::new(
         &output,
-        args.output_format,
+        plan.format,
         &scene.name,
         &scene.model.triangles,
+        scene.mesh.uvs.as_ref(),
         timing,
     );
+    if let Some(file) = &plan.frames_file {
+        frames = frames.streaming_to(file);
+    }
     if !args.no_frames {
         write_frame(&mut frames, &solver, &solver.state()?, first_step)?;
     }
@@ -153,7 +220,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             Ok(state)
         }) {
             Ok(state) => state,
-            Err(error) => return Err(stopped(error, &output, frames)),
+            Err(error) => return Err(stopped(error, plan.shown(), frames)),
         };
         if !args.no_frames && (step.is_multiple_of(frame_every) || step == steps) {
             write_frame(&mut frames, &solver, &state, first_step + step)?;
@@ -166,7 +233,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
 
     let snapshot = solver.snapshot()?;
     let state = snapshot.state.clone();
-    let final_path = output.join("final-state.ply");
+    let final_path = plan.file("final-state.ply");
     save_state(&final_path, &snapshot, &scene.model, scene.material.dt)
         .with_context(|| format!("writing {}", final_path.display()))?;
     let summary = summarize(
@@ -176,11 +243,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         steps,
         solver_time,
         frames_written,
-        &output,
+        &plan,
     )?;
     print_summary(&summary, &energy(&scene.model, &state, &scene.material));
     let json = serde_json::to_string_pretty(&summary)?;
-    let summary_path = output.join("summary.json");
+    let summary_path = plan.file("summary.json");
     hooke_core::atomic_file::write_atomically(&summary_path, |file| {
         std::io::Write::write_all(file, json.as_bytes())
     })
@@ -241,7 +308,7 @@ fn summarize(
     steps: u64,
     solver_time: Duration,
     frames_written: usize,
-    output: &Path,
+    plan: &OutputPlan,
 ) -> anyhow::Result<Summary> {
     let colliders = solver.colliders()?;
     let e = energy(&scene.model, state, &scene.material);
@@ -272,7 +339,8 @@ fn summarize(
         energy_total: e.total(),
         max_strain: max_strain(&scene.model, &state.positions).0,
         frames_written,
-        output: output.to_path_buf(),
+        output: plan.shown().to_path_buf(),
+        final_state: plan.file("final-state.ply"),
         balls: colliders
             .iter()
             .enumerate()
@@ -317,8 +385,9 @@ fn print_summary(s: &Summary, e: &Energy) {
         );
     }
     println!(
-        "output       {} ({} frames, final-state.ply and .toml, summary.json)",
+        "output       {} ({} frames); state {} and .toml; summary.json",
         s.output.display(),
-        s.frames_written
+        s.frames_written,
+        s.final_state.display()
     );
 }

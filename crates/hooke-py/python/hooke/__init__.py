@@ -6,9 +6,14 @@ on any GPU through wgpu, on a multithreaded CPU, or on a float64 reference, from
 >>> sim.step(500)
 >>> sim.positions().shape
 (4096, 3)
+>>> with hooke.FrameWriter(sim, "out/cloth.usda", frame_every=10) as frames:
+...     for _ in range(5):
+...         sim.step(10)
+...         frames.write()
 """
 
 from hooke._native import (
+    FrameWriter,
     GpuError,
     HookeError,
     InputError,
@@ -20,6 +25,7 @@ from hooke._native import (
 )
 
 __all__ = [
+    "FrameWriter",
     "GpuError",
     "HookeError",
     "InputError",

@@ -66,6 +66,7 @@ class Simulation:
         thickness: float = 0.0,
         colliders: Sequence[dict[str, Any]] | None = None,
         self_collision: dict[str, Any] | None = None,
+        uvs: npt.ArrayLike | None = None,
         backend: Backend = "cpu",
         method: Method | None = None,
         accumulation: Accumulation | None = None,
@@ -73,7 +74,8 @@ class Simulation:
         allow_unstable: bool = False,
     ) -> Simulation:
         """A simulation of vertices (N, 3) and triangles (T, 3), with a scene file's settings
-        as keywords. dt=None is 0.9 of the stability bound."""
+        as keywords. dt=None is 0.9 of the stability bound. uvs (N, 2), texture coordinates
+        per vertex, go into the frames."""
 
     @property
     def name(self) -> str: ...
@@ -146,6 +148,33 @@ class Simulation:
         strain: bool = False,
         wireframe: bool = False,
     ) -> None: ...
+
+FrameFormat: TypeAlias = Literal["ply", "obj", "pc2", "usda"]
+
+class FrameWriter:
+    """Frames of a simulation in the formats `hooke run` writes. `output` is a directory
+    (frame-NNNNNNN.ply/.obj, frames.pc2, frames.usda) or a .usda/.pc2 file; format defaults to
+    the file's extension, else "ply". A .pc2 or .usda file appears when the writer is closed
+    (also on leaving a `with` block, or when the writer is collected)."""
+
+    def __init__(
+        self,
+        simulation: Simulation,
+        output: str | PathLike[str],
+        *,
+        format: FrameFormat | None = None,
+        frame_every: int = 1,
+    ) -> None: ...
+    def write(self) -> None:
+        """Adds the simulation's current state as the frame of its step counter."""
+    def close(self) -> int:
+        """Completes the output; returns the number of frames written."""
+    @property
+    def frames_written(self) -> int: ...
+    @property
+    def path(self) -> PathLike[str]: ...
+    def __enter__(self) -> FrameWriter: ...  # noqa: PYI034 (typing.Self needs Python 3.11)
+    def __exit__(self, *exc: object) -> bool: ...
 
 def adapters() -> list[dict[str, Any]]: ...
 def springs(triangles: npt.ArrayLike) -> npt.NDArray[np.uint32]: ...
