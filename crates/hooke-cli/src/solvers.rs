@@ -67,8 +67,12 @@ impl From<AccumulationArg> for Accumulation {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum OrderArg {
+    /// The mesh's order, unless its neighbours lie far apart in it: then spatial.
+    Auto,
     /// The mesh's own vertex order.
     Mesh,
+    /// Along a Z-order curve through space (for meshes numbered without care for locality).
+    Spatial,
     /// Sorted by decreasing valence (the paper's texture layout).
     ValenceSorted,
 }
@@ -76,7 +80,9 @@ pub enum OrderArg {
 impl From<OrderArg> for VertexOrder {
     fn from(o: OrderArg) -> Self {
         match o {
+            OrderArg::Auto => VertexOrder::Auto,
             OrderArg::Mesh => VertexOrder::Mesh,
+            OrderArg::Spatial => VertexOrder::Spatial,
             OrderArg::ValenceSorted => VertexOrder::ValenceSorted,
         }
     }
@@ -99,7 +105,7 @@ pub struct SolverArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Vertex order of the cpu backend.
-    #[arg(long, value_enum, default_value_t = OrderArg::Mesh)]
+    #[arg(long, value_enum, default_value_t = OrderArg::Auto)]
     pub order: OrderArg,
 }
 

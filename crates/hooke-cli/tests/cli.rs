@@ -226,6 +226,8 @@ fn bench_prints_a_row_per_mesh_and_method() {
         "16,24",
         "--irregular",
         "300",
+        "--shuffled",
+        "16",
         "--steps",
         "20",
         "--warmup",
@@ -236,7 +238,17 @@ fn bench_prints_a_row_per_mesh_and_method() {
     assert!(result.status.success(), "{}", text(&result.stderr));
     let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     let rows = report["rows"].as_array().expect("rows");
-    assert_eq!(rows.len(), 6);
+    assert_eq!(rows.len(), 8);
+    let shuffled: Vec<_> = rows
+        .iter()
+        .filter(|r| r["mesh"] == "grid 16^2 shuffled")
+        .collect();
+    assert_eq!(shuffled.len(), 2, "gather and scatter");
+    assert!(
+        shuffled
+            .iter()
+            .all(|r| r["vertices"] == 256 && r["springs"] == rows[0]["springs"])
+    );
     for row in rows {
         assert!(row["total_ms"].as_f64().is_some_and(|t| t > 0.0), "{row}");
         assert!(
@@ -374,6 +386,8 @@ fn gpu_bench_prints_every_accumulation() {
         "16",
         "--irregular",
         "0",
+        "--shuffled",
+        "0",
         "--steps",
         "10",
         "--warmup",
@@ -398,6 +412,18 @@ fn gpu_bench_prints_every_accumulation() {
     ] {
         assert!(methods.contains(&expected), "{expected} in {methods:?}");
     }
+    // Gather: force, integration, step counter; scatter adds its accumulation pass(es).
+    let passes = |method: &str| {
+        report["rows"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .find(|r| r["method"] == method)
+            .and_then(|r| r["dispatches_per_step"].as_u64())
+    };
+    assert_eq!(passes("gather"), Some(3));
+    assert_eq!(passes("scatter/incidence"), Some(4));
+    assert_eq!(passes("scatter/atomic-fixed"), Some(5));
 }
 
 #[test]
@@ -691,6 +717,8 @@ fn bench_shows_the_collision_phase_with_self_collision() {
         "--sizes",
         "32",
         "--irregular",
+        "0",
+        "--shuffled",
         "0",
         "--self-collision",
         "2",

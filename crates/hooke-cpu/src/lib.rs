@@ -73,7 +73,7 @@ impl Default for CpuOptions {
         Self {
             method: Method::Scatter,
             threads: None,
-            order: VertexOrder::Mesh,
+            order: VertexOrder::Auto,
             instruction_set: InstructionSet::Best,
         }
     }
@@ -530,9 +530,9 @@ fn compute_spring_forces(
 
 impl Solver for CpuSolver {
     fn describe(&self) -> String {
-        let order = match self.options.order {
-            VertexOrder::Mesh => "",
-            VertexOrder::ValenceSorted => ", valence-sorted",
+        let order = match self.numbering.order {
+            VertexOrder::Mesh => String::new(),
+            chosen => format!(", {}", chosen.name()),
         };
         format!(
             "cpu {} (f32, {} threads{order})",

@@ -392,7 +392,11 @@ fn gather_scatter_orders_and_thread_counts_are_bit_identical() {
     };
     let baseline = run(Method::Scatter, VertexOrder::Mesh, 1);
     for method in Method::ALL {
-        for order in [VertexOrder::Mesh, VertexOrder::ValenceSorted] {
+        for order in [
+            VertexOrder::Mesh,
+            VertexOrder::Spatial,
+            VertexOrder::ValenceSorted,
+        ] {
             for threads in [1, 2, 3] {
                 assert!(
                     run(method, order, threads) == baseline,

@@ -35,7 +35,9 @@ use crate::layout::GpuStatus;
 use crate::methods::{Accumulation, GpuMemory, GpuMethod};
 use crate::model::{GpuModel, vec4s};
 use crate::state::GpuState;
-use crate::step::{Fused, PassSink, Phase, TIMESTAMP_SLOTS, Timestamped, WallClock, add_phase};
+use crate::step::{
+    Fused, PassSink, Phase, Record, TIMESTAMP_SLOTS, Timestamped, WallClock, add_phase,
+};
 
 /// The force pass and, for scatter, its accumulation (boxed: on wasm, wgpu's handles make it
 /// several times the size of the gather variant).
@@ -258,6 +260,23 @@ impl GpuSolver {
                 + self.model.triangle_bytes
                 + self.collide.as_ref().map_or(0, |c| c.bytes()),
         }
+    }
+
+    /// The GPU work one step records: compute dispatches and draws (the blend accumulation's),
+    /// as `hooke bench` reports them. Each pass but self-collision's is one dispatch or draw.
+    pub fn dispatches_per_step(&self) -> u32 {
+        struct Count(u32);
+        impl PassSink for Count {
+            fn pass(&mut self, _: Phase, _: &mut Record<'_>) -> Result<(), GpuError> {
+                self.0 += 1;
+                Ok(())
+            }
+        }
+        let mut count = Count(0);
+        // Counting records nothing and cannot fail.
+        let _ = self.record_step(&mut count);
+        let self_collision = self.self_collide.as_ref().map_or(0, |p| p.dispatches() - 1);
+        count.0 + self_collision
     }
 
     /// Hands the passes of one step to `sink`, in order: the control's forces (when it has

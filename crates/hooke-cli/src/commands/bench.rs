@@ -50,6 +50,10 @@ pub struct BenchArgs {
     /// Vertices of the irregular mesh (0 to skip it).
     #[arg(long, default_value_t = 65_536)]
     pub irregular: u32,
+    /// Side of a grid whose vertices are numbered in a random order, as meshes exported
+    /// without care for locality are (0 to skip it); compare with the same grid in order.
+    #[arg(long, default_value_t = 256)]
+    pub shuffled: u32,
     /// CPU methods to run.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [MethodArg::Gather, MethodArg::Scatter])]
     pub methods: Vec<MethodArg>,
@@ -57,7 +61,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Vertex order.
-    #[arg(long, value_enum, default_value_t = OrderArg::Mesh)]
+    #[arg(long, value_enum, default_value_t = OrderArg::Auto)]
     pub order: OrderArg,
     /// Timed steps per method (fused, then the same number phase-separated).
     #[arg(long, default_value_t = 300)]
@@ -93,6 +97,8 @@ struct Row {
     total_ms: f64,
     springs_per_second: f64,
     bytes_per_step: usize,
+    /// GPU: the compute dispatches and draws one step records.
+    dispatches_per_step: Option<u32>,
     copy_bandwidth_gb_per_s: Option<f64>,
     bandwidth_floor_ms: Option<f64>,
     dt_above_stability_bound: bool,
@@ -113,16 +119,37 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let copy_pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
-    let mut meshes: Vec<(String, MeshSection, u32)> = args
+    let mut meshes: Vec<(String, Workload)> = args
         .sizes
         .iter()
-        .map(|&n| (format!("grid {n}^2"), MeshSection::unit_grid(n, n), n * n))
+        .map(|&n| {
+            let workload = Workload {
+                mesh: MeshSection::unit_grid(n, n),
+                vertices: n * n,
+                shuffled: false,
+            };
+            (format!("grid {n}^2"), workload)
+        })
         .collect();
     if args.irregular > 0 {
         meshes.push((
             format!("irregular {}", args.irregular),
-            MeshSection::unit_irregular(args.irregular, IRREGULAR_SEED),
-            args.irregular,
+            Workload {
+                mesh: MeshSection::unit_irregular(args.irregular, IRREGULAR_SEED),
+                vertices: args.irregular,
+                shuffled: false,
+            },
+        ));
+    }
+    if args.shuffled > 0 {
+        let n = args.shuffled;
+        meshes.push((
+            format!("grid {n}^2 shuffled"),
+            Workload {
+                mesh: MeshSection::unit_grid(n, n),
+                vertices: n * n,
+                shuffled: true,
+            },
         ));
     }
     let gpu = match args.backend {
@@ -131,9 +158,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     };
     let run_cpu = args.backend != BenchBackend::Gpu;
     let mut rows = Vec::new();
-    for (name, section, vertex_count) in meshes {
-        let mut scene =
-            benchmark_scene(section, vertex_count).with_context(|| format!("building {name}"))?;
+    for (name, workload) in meshes {
+        let mut scene = benchmark_scene(workload).with_context(|| format!("building {name}"))?;
         if let Some(grids) = args.self_collision {
             anyhow::ensure!(
                 (1..=selfcollide::MAX_GRIDS).contains(&grids),
@@ -193,17 +219,34 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
 /// Seed of the benchmark's irregular mesh (`scenes/bench-irregular.toml` uses the same).
 const IRREGULAR_SEED: u64 = 1;
 
+/// Seed of the shuffled grid's vertex order.
+const SHUFFLE_SEED: u64 = 2;
+
+/// A benchmark mesh: generated, and maybe then numbered in a random order.
+struct Workload {
+    mesh: MeshSection,
+    /// The vertices asked of the generator.
+    vertices: u32,
+    shuffled: bool,
+}
+
 /// The benchmark scene; its dt may exceed the conservative stability bound on irregular meshes
 /// (valence up to 12), which the table marks rather than refuses, since the workload is fixed.
-fn benchmark_scene(section: MeshSection, vertex_count: u32) -> anyhow::Result<Scene> {
-    let scene =
-        SceneFile::benchmark(section.clone(), vertex_count).build(Path::new("bench"), true)?;
+fn benchmark_scene(workload: Workload) -> anyhow::Result<Scene> {
+    let name = Path::new("bench");
+    let scene = SceneFile::benchmark(workload.mesh.clone(), workload.vertices).build(name, true)?;
     let actual = scene.model.vertex_count() as u32;
-    if actual == vertex_count {
+    if actual == workload.vertices && !workload.shuffled {
         return Ok(scene);
     }
     // A generator may make a few vertices fewer than asked; m = 1/N needs the real N.
-    Ok(SceneFile::benchmark(section, actual).build(Path::new("bench"), true)?)
+    let mesh = if workload.shuffled {
+        scene.mesh.shuffled(SHUFFLE_SEED)
+    } else {
+        scene.mesh
+    };
+    let file = SceneFile::benchmark(workload.mesh, actual);
+    Ok(file.build_with_mesh(mesh, Vec::new(), name, true)?)
 }
 
 /// Fused steps per timing sample.
@@ -301,6 +344,9 @@ fn measure(
             (choice, _) => anyhow::bail!("hooke bench does not time {}", choice.name()),
         };
     let medians = PhaseMedians::of(&phases, accumulates, scene.model.collision.any());
+    let dispatches_per_step = simulation
+        .gpu_solver_mut()
+        .map(|solver| solver.dispatches_per_step());
     Ok(Row {
         mesh: name.to_owned(),
         vertices: scene.model.vertex_count(),
@@ -317,6 +363,7 @@ fn measure(
         total_ms,
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step,
+        dispatches_per_step,
         copy_bandwidth_gb_per_s: bandwidth.map(|b| b / 1e9),
         bandwidth_floor_ms: bandwidth.map(|b| 1e3 * bytes_per_step as f64 / b),
         dt_above_stability_bound: scene.material.dt > scene.max_stable_dt,
@@ -384,6 +431,7 @@ fn print_report(report: &Report) {
         "Mspring/s",
         "bytes/step",
         "bw floor ms",
+        "passes",
     ]);
     for r in &report.rows {
         let mesh = if r.dt_above_stability_bound {
@@ -406,6 +454,8 @@ fn print_report(report: &Report) {
             bytes(r.bytes_per_step),
             r.bandwidth_floor_ms
                 .map_or("-".to_owned(), |f| format!("{f:.3}")),
+            r.dispatches_per_step
+                .map_or("-".to_owned(), |d| d.to_string()),
         ]);
     }
     println!("{}", table(t));
@@ -417,7 +467,7 @@ fn print_report(report: &Report) {
     );
     if let Some(gpu) = report.rows.iter().find(|r| r.backend == "gpu") {
         println!(
-            "gpu: phases from {}; total includes one status read-back per 10 steps; bytes/step is the GPU memory the method allocates.",
+            "gpu: phases from {}; total includes one status read-back per 10 steps; bytes/step is the GPU memory the method allocates; passes: compute dispatches and draws per step.",
             gpu.phase_timing
         );
     }

@@ -331,6 +331,41 @@ impl Mesh {
         Ok(())
     }
 
+    /// The same surface with vertex `k` being this mesh's vertex `order[k]` (`order` a
+    /// permutation): triangles and vertex properties follow; texture coordinates stay per
+    /// corner, so they still fit.
+    pub fn renumbered(&self, order: &[u32]) -> Mesh {
+        let mut new_index = vec![0u32; order.len()];
+        for (k, &old) in order.iter().enumerate() {
+            new_index[old as usize] = k as u32;
+        }
+        let permute = |values: &Vec<f64>| order.iter().map(|&i| values[i as usize]).collect();
+        Mesh {
+            positions: order.iter().map(|&i| self.positions[i as usize]).collect(),
+            triangles: self
+                .triangles
+                .iter()
+                .map(|t| t.map(|i| new_index[i as usize]))
+                .collect(),
+            uvs: self.uvs.clone(),
+            vertex_properties: self
+                .vertex_properties
+                .iter()
+                .map(|(name, values)| (name.clone(), permute(values)))
+                .collect(),
+        }
+    }
+
+    /// The same surface with its vertices in a random order (seeded): what a mesh exported
+    /// from a tool that does not care about locality looks like.
+    pub fn shuffled(&self, seed: u64) -> Mesh {
+        use rand::SeedableRng;
+        use rand::seq::SliceRandom;
+        let mut order: Vec<u32> = (0..self.positions.len() as u32).collect();
+        order.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));
+        self.renumbered(&order)
+    }
+
     /// Per-vertex valence (number of unique incident edges).
     pub fn valences(&self) -> Vec<u32> {
         let mut valence = vec![0u32; self.positions.len()];
@@ -434,6 +469,22 @@ mod tests {
             mesh.validate("m").unwrap_err(),
             MeshError::ZeroLengthEdge { a: 2, b: 3, .. }
         ));
+    }
+
+    #[test]
+    fn a_renumbered_mesh_is_the_same_surface() {
+        let mut mesh = square();
+        mesh.vertex_properties
+            .insert("k".into(), vec![1.0, 2.0, 3.0, 4.0]);
+        let shuffled = mesh.renumbered(&[2, 0, 3, 1]);
+        assert_eq!(shuffled.positions[0], mesh.positions[2]);
+        assert_eq!(shuffled.vertex_properties["k"], vec![3.0, 1.0, 4.0, 2.0]);
+        for (t, u) in mesh.triangles.iter().zip(&shuffled.triangles) {
+            for (a, b) in t.iter().zip(u) {
+                assert_eq!(mesh.positions[*a as usize], shuffled.positions[*b as usize]);
+            }
+        }
+        assert_eq!(mesh.shuffled(3).edges().len(), mesh.edges().len());
     }
 
     #[test]

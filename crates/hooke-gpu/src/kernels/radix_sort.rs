@@ -117,6 +117,11 @@ impl RadixSort {
         self.bytes
     }
 
+    /// Dispatches the sort records: count, scan and scatter per digit.
+    pub fn dispatches(&self) -> u32 {
+        3 * self.passes.len() as u32
+    }
+
     /// Records the sort into an open compute pass.
     pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
         for [count_group, scan_group, scatter_group] in &self.passes {

@@ -158,6 +158,12 @@ impl SelfCollidePass {
     }
 
     /// Records every grid's passes for a step whose current position buffer is `current`.
+    /// Dispatches per step: per grid, the keys, the sort, the corrections and their
+    /// application.
+    pub fn dispatches(&self) -> u32 {
+        self.key_groups.len() as u32 * (3 + self.sort.dispatches())
+    }
+
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
