@@ -530,10 +530,13 @@ fn compute_spring_forces(
 
 impl Solver for CpuSolver {
     fn describe(&self) -> String {
-        let order = match self.numbering.order {
+        let mut order = match self.numbering.order {
             VertexOrder::Mesh => String::new(),
             chosen => format!(", {}", chosen.name()),
         };
+        if self.numbering.valence_windows {
+            order += &format!(", valence-sorted in windows of {}", layout::VALENCE_WINDOW);
+        }
         format!(
             "cpu {} (f32, {} threads{order})",
             self.options.method.name(),
