@@ -123,11 +123,9 @@ fn a_run_killed_while_streaming_leaves_the_previous_file_or_none() {
             let mut child = run("1000000", "1").spawn().expect("hooke starts");
             let started = Instant::now();
             let streamed = || {
-                std::fs::read_dir(dir.path())
-                    .expect("list")
-                    .map(|e| e.expect("entry"))
-                    .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
-                    .map(|e| e.metadata().map_or(0, |m| m.len()))
+                partials_in(dir.path())
+                    .iter()
+                    .map(|name| std::fs::metadata(dir.path().join(name)).map_or(0, |m| m.len()))
                     .max()
                     .unwrap_or(0)
             };

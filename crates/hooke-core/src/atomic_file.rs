@@ -7,6 +7,13 @@ use std::path::{Path, PathBuf};
 
 use tempfile::NamedTempFile;
 
+/// The directory a file named `path` goes in (`.` for a bare name).
+pub fn directory_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
 /// Writes `path` through `write`, atomically. The file gets the usual `rw-r--r--` mode.
 pub fn write_atomically(
     path: &Path,
@@ -29,10 +36,7 @@ pub struct AtomicFile {
 
 impl AtomicFile {
     pub fn create(path: &Path) -> std::io::Result<Self> {
-        let directory = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
+        let directory = directory_of(path);
         // A hidden `.NAME.XXXXXX.partial` beside the target: a run killed mid-write leaves one,
         // named so that nobody takes it for output.
         let name = path

@@ -11,6 +11,7 @@
 //! per-vertex sums of gather and scatter are bit-identical.
 
 use hooke_core::Model;
+use hooke_core::mesh::{axes_by_extent, bounds};
 
 /// SIMD width of the kernels (8 x f32 = one AVX register).
 pub const LANES: usize = 8;
@@ -180,17 +181,9 @@ fn is_scattered(model: &Model) -> bool {
 /// for a Z-order curve, against 1.0-1.1x for rows).
 fn row_keys(model: &Model) -> Vec<(i64, f64)> {
     let positions = &model.initial_positions;
-    let (low, high) = positions.iter().fold(
-        (
-            glam::DVec3::splat(f64::INFINITY),
-            glam::DVec3::splat(f64::NEG_INFINITY),
-        ),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+    let (low, high) = bounds(positions);
     let extent = high - low;
-    let mut axes = [0usize, 1, 2];
-    axes.sort_by(|a, b| extent[*b].total_cmp(&extent[*a]));
-    let (along, across) = (axes[0], axes[1]);
+    let [along, across, _] = axes_by_extent(extent);
     // The row height: the median over vertices of the shortest spring at each.
     let mut shortest: Vec<f64> = (0..model.vertex_count())
         .filter_map(|v| {
@@ -280,15 +273,19 @@ mod tests {
     use hooke_core::mesh::{GridPlane, grid};
     use hooke_core::{MassModel, ModelOptions, StiffnessModel};
 
-    fn model() -> Model {
-        let mesh = grid(5, 3, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
-        let options = ModelOptions {
+    /// Unit springs and masses, nothing pinned.
+    fn options() -> ModelOptions {
+        ModelOptions {
             stiffness: StiffnessModel::Uniform(1.0),
             mass: MassModel::PerVertex(1.0),
             rest_length_scale: 1.0,
             pinned: vec![],
-        };
-        Model::from_mesh(&mesh, &options).expect("model")
+        }
+    }
+
+    fn model() -> Model {
+        let mesh = grid(5, 3, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
+        Model::from_mesh(&mesh, &options()).expect("model")
     }
 
     #[test]
@@ -304,12 +301,7 @@ mod tests {
 
     #[test]
     fn auto_keeps_a_grid_in_order_and_renumbers_a_shuffled_one_along_space() {
-        let options = ModelOptions {
-            stiffness: StiffnessModel::Uniform(1.0),
-            mass: MassModel::PerVertex(1.0),
-            rest_length_scale: 1.0,
-            pinned: vec![],
-        };
+        let options = options();
         let mesh = grid(64, 64, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
         let ordered = Model::from_mesh(&mesh, &options).expect("model");
         assert_eq!(
@@ -338,12 +330,7 @@ mod tests {
 
     #[test]
     fn auto_sorts_an_irregular_mesh_by_valence_in_windows_and_pads_less() {
-        let options = ModelOptions {
-            stiffness: StiffnessModel::Uniform(1.0),
-            mass: MassModel::PerVertex(1.0),
-            rest_length_scale: 1.0,
-            pinned: vec![],
-        };
+        let options = options();
         let grid = Model::from_mesh(
             &grid(64, 64, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO),
             &options,

@@ -1,10 +1,10 @@
 //! `hooke.FrameWriter`: a simulation's frames from Python, in the formats `hooke run` writes
 //! (PLY or OBJ sequences, a Blender point cache, a USD stage), through the same writer.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Mutex;
 
-use hooke_core::frames::{FrameFormat, FrameTiming};
+use hooke_core::frames::{FrameDestination, FrameFormat, FrameTiming};
 use pyo3::prelude::*;
 
 use crate::errors::{HookeError, OrRaise, input};
@@ -42,10 +42,9 @@ impl FrameWriter {
         let format = format
             .map(|name| {
                 FrameFormat::from_name(name).ok_or_else(|| {
-                    let names: Vec<_> = FrameFormat::ALL.iter().map(|f| f.name()).collect();
                     input(format!(
                         "format '{name}': expected one of {}",
-                        names.join(", ")
+                        FrameFormat::choices()
                     ))
                 })
             })
@@ -53,47 +52,30 @@ impl FrameWriter {
         if frame_every == 0 {
             return Err(input("frame_every must be at least 1"));
         }
-        let single_file = FrameFormat::of_single_file(&output);
-        let format = match (format, single_file) {
-            (Some(given), Some(named)) if given != named => {
-                return Err(input(format!(
-                    "{} is a .{} file but format is '{}'",
-                    output.display(),
-                    named.name(),
-                    given.name()
-                )));
-            }
-            (given, named) => given.or(named).unwrap_or(FrameFormat::Ply),
-        };
-        let directory = match single_file {
-            Some(_) => output
-                .parent()
-                .filter(|p| !p.as_os_str().is_empty())
-                .unwrap_or(Path::new("."))
-                .to_owned(),
-            None => output.clone(),
-        };
-        std::fs::create_dir_all(&directory)
-            .map_err(|e| input(format!("{}: {e}", directory.display())))?;
+        let destination = FrameDestination::resolve(&output, format).map_err(|c| {
+            input(format!(
+                "{} is a .{} file but format is '{}'",
+                output.display(),
+                c.named.name(),
+                c.given.name()
+            ))
+        })?;
+        std::fs::create_dir_all(&destination.directory)
+            .map_err(|e| input(format!("{}: {e}", destination.directory.display())))?;
         let owner = simulation.borrow();
         let writer = owner.with(|s| {
             let timing = FrameTiming {
                 dt: s.material().dt,
                 frame_every,
             };
-            Ok(hooke_core::frames::FrameWriter::new(
-                &directory,
-                format,
+            Ok(hooke_core::frames::FrameWriter::to(
+                &destination,
                 owner.name(),
                 &s.model().triangles,
                 owner.uvs(),
                 timing,
             ))
         })?;
-        let writer = match single_file {
-            Some(_) => writer.streaming_to(&output),
-            None => writer,
-        };
         drop(owner);
         Ok(Self {
             simulation: simulation.unbind(),

@@ -11,7 +11,7 @@ use hooke::state_file::{load_state, save_state};
 use hooke_core::State;
 use hooke_core::collide::Shape;
 use hooke_core::diagnostics::{Energy, check_health, energy, max_strain};
-use hooke_core::frames::{FrameFormat, FrameTiming, FrameWriter};
+use hooke_core::frames::{FrameDestination, FrameFormat, FrameTiming, FrameWriter};
 use hooke_core::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -98,12 +98,9 @@ struct BallSummary {
 /// Where a run's files go: a directory of frames, `final-state.ply` and `summary.json`, or one
 /// frames file (`cloth.usda`) with `cloth.final-state.ply` and `cloth.summary.json` beside it.
 struct OutputPlan {
-    directory: PathBuf,
-    /// The one frames file, when `--output` named it.
-    frames_file: Option<PathBuf>,
+    frames: FrameDestination,
     /// Put before the state's and summary's names: `cloth.` beside `cloth.usda`.
     prefix: String,
-    format: FrameFormat,
 }
 
 impl OutputPlan {
@@ -112,46 +109,34 @@ impl OutputPlan {
             .output
             .clone()
             .unwrap_or_else(|| Path::new("out").join(scene_name));
-        let Some(file_format) = FrameFormat::of_single_file(&output) else {
-            return Ok(Self {
-                directory: output,
-                frames_file: None,
-                prefix: String::new(),
-                format: args.output_format.unwrap_or(FrameFormat::Ply),
-            });
-        };
-        if let Some(format) = args.output_format.filter(|f| *f != file_format) {
-            anyhow::bail!(
+        let frames = FrameDestination::resolve(&output, args.output_format).map_err(|c| {
+            anyhow::anyhow!(
                 "--output {} is a .{} file but --output-format is {}",
                 output.display(),
-                file_format.name(),
-                format.name()
-            );
-        }
-        let directory = output
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."))
-            .to_owned();
-        let stem = output
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        Ok(Self {
-            directory,
-            prefix: format!("{stem}."),
-            frames_file: Some(output),
-            format: file_format,
-        })
+                c.named.name(),
+                c.given.name()
+            )
+        })?;
+        let prefix = match &frames.file {
+            Some(file) => format!(
+                "{}.",
+                file.file_stem().unwrap_or_default().to_string_lossy()
+            ),
+            None => String::new(),
+        };
+        Ok(Self { frames, prefix })
     }
 
     fn file(&self, name: &str) -> PathBuf {
-        self.directory.join(format!("{}{name}", self.prefix))
+        self.frames.directory.join(format!("{}{name}", self.prefix))
     }
 
     /// What the summary calls the output: the directory, or the frames file.
     fn shown(&self) -> &Path {
-        self.frames_file.as_deref().unwrap_or(&self.directory)
+        self.frames
+            .file
+            .as_deref()
+            .unwrap_or(&self.frames.directory)
     }
 }
 
@@ -160,7 +145,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let steps = args.steps.unwrap_or(scene.steps);
     let frame_every = args.frame_every.unwrap_or(scene.frame_every).max(1);
     let plan = OutputPlan::new(args, &scene.name)?;
-    let output = plan.directory.clone();
+    let output = plan.frames.directory.clone();
     std::fs::create_dir_all(&output)
         .with_context(|| format!("creating output directory {}", output.display()))?;
 
@@ -188,17 +173,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         dt: scene.material.dt,
         frame_every,
     };
-    let mut frames = FrameWriter::new(
-        &output,
-        plan.format,
+    let mut frames = FrameWriter::to(
+        &plan.frames,
         &scene.name,
         &scene.model.triangles,
         scene.mesh.uvs.as_ref(),
         timing,
     );
-    if let Some(file) = &plan.frames_file {
-        frames = frames.streaming_to(file);
-    }
     if !args.no_frames {
         write_frame(&mut frames, &solver, &solver.state()?, first_step)?;
     }
@@ -286,10 +267,8 @@ fn stopped(error: hooke_core::SimError, output: &Path, frames: FrameWriter) -> a
 }
 
 fn parse_frame_format(name: &str) -> Result<FrameFormat, String> {
-    FrameFormat::from_name(name).ok_or_else(|| {
-        let names: Vec<_> = FrameFormat::ALL.iter().map(|f| f.name()).collect();
-        format!("expected one of {}", names.join(", "))
-    })
+    FrameFormat::from_name(name)
+        .ok_or_else(|| format!("expected one of {}", FrameFormat::choices()))
 }
 
 fn progress_bar(steps: u64) -> ProgressBar {

@@ -44,6 +44,11 @@ impl FrameFormat {
         }
     }
 
+    /// Every name, for an error that lists the choices: `ply, obj, pc2, usda`.
+    pub fn choices() -> String {
+        Self::ALL.map(Self::name).join(", ")
+    }
+
     /// The format of this [`FrameFormat::name`].
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|f| f.name() == name)
@@ -54,6 +59,46 @@ impl FrameFormat {
     pub fn of_single_file(path: &Path) -> Option<Self> {
         let extension = path.extension()?.to_str()?.to_ascii_lowercase();
         Self::from_name(&extension).filter(|f| matches!(f, Self::Pc2 | Self::Usda))
+    }
+}
+
+/// Where frames go, from the path a user named: a directory, or one `.usda` or `.pc2` file
+/// (whose directory then holds the run's other files).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameDestination {
+    pub directory: PathBuf,
+    /// The one file every frame goes to, when the path named it.
+    pub file: Option<PathBuf>,
+    pub format: FrameFormat,
+}
+
+/// A format asked for that the output file's extension contradicts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FormatConflict {
+    /// The format the extension names.
+    pub named: FrameFormat,
+    /// The format asked for.
+    pub given: FrameFormat,
+}
+
+impl FrameDestination {
+    /// The destination of `output` in `format` (default: the file's extension, else PLY).
+    pub fn resolve(output: &Path, format: Option<FrameFormat>) -> Result<Self, FormatConflict> {
+        let Some(named) = FrameFormat::of_single_file(output) else {
+            return Ok(Self {
+                directory: output.to_owned(),
+                file: None,
+                format: format.unwrap_or(FrameFormat::Ply),
+            });
+        };
+        if let Some(given) = format.filter(|f| *f != named) {
+            return Err(FormatConflict { named, given });
+        }
+        Ok(Self {
+            directory: crate::atomic_file::directory_of(output).to_owned(),
+            file: Some(output.to_owned()),
+            format: named,
+        })
     }
 }
 
@@ -107,11 +152,24 @@ impl FrameWriter {
         }
     }
 
-    /// Writes a format of one file (`.pc2`, `.usda`) to `path` instead of `frames.<ext>`; a
-    /// format of a file per frame ignores it.
-    pub fn streaming_to(mut self, path: &Path) -> Self {
-        self.stream_path = Some(path.to_owned());
-        self
+    /// [`FrameWriter::new`] for a destination: into its directory, or its one file.
+    pub fn to(
+        destination: &FrameDestination,
+        name: &str,
+        triangles: &[[u32; 3]],
+        uvs: Option<&TextureCoordinates>,
+        timing: FrameTiming,
+    ) -> Self {
+        let mut writer = Self::new(
+            &destination.directory,
+            destination.format,
+            name,
+            triangles,
+            uvs,
+            timing,
+        );
+        writer.stream_path = destination.file.clone();
+        writer
     }
 
     /// Whether frames carry the colliders (USD draws them; the others hold only the cloth), so
@@ -396,7 +454,13 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let (positions, triangles) = square();
         let path = dir.path().join("cloth.pc2");
-        let mut writer = writer(dir.path(), FrameFormat::Pc2, &triangles).streaming_to(&path);
+        let destination = FrameDestination::resolve(&path, None).expect("a .pc2 file");
+        assert_eq!(destination.format, FrameFormat::Pc2);
+        let timing = FrameTiming {
+            dt: 1e-3,
+            frame_every: 10,
+        };
+        let mut writer = FrameWriter::to(&destination, "square", &triangles, None, timing);
         assert_eq!(writer.path(10), path);
         writer.write(0, &positions, &[]).expect("frame");
         writer.finish().expect("finished");

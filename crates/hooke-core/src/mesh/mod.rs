@@ -147,6 +147,22 @@ impl std::fmt::Display for MeshWarning {
     }
 }
 
+/// Axis-aligned bounding box `(min, max)` of points.
+pub fn bounds(points: &[DVec3]) -> (DVec3, DVec3) {
+    points.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    )
+}
+
+/// The axes (0 = x, 1 = y, 2 = z) from the longest `extent` to the shortest: a sheet lies in
+/// the plane of the first two.
+pub fn axes_by_extent(extent: DVec3) -> [usize; 3] {
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|a, b| extent[*b].total_cmp(&extent[*a]));
+    axes
+}
+
 /// A unique undirected edge `a < b` and how many triangles share it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Edge {
@@ -389,10 +405,7 @@ impl Mesh {
 
     /// Axis-aligned bounding box `(min, max)`.
     pub fn bounds(&self) -> (DVec3, DVec3) {
-        self.positions.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        )
+        bounds(&self.positions)
     }
 }
 

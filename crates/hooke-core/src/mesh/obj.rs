@@ -40,35 +40,21 @@ pub fn parse_obj(text: &str) -> Result<(Mesh, Vec<MeshWarning>), ObjError> {
         let mut words = statement.split_whitespace();
         match words.next() {
             Some("v") => {
-                let numbers: Vec<&str> = words.collect();
-                if !(3..=7).contains(&numbers.len()) {
-                    return Err(error(format!(
-                        "a vertex needs x y z (and optionally w or r g b), found {} numbers",
-                        numbers.len()
-                    )));
-                }
-                let mut coordinates = [0.0; 3];
-                for (value, word) in coordinates.iter_mut().zip(&numbers) {
-                    *value = word
-                        .parse::<f64>()
-                        .map_err(|_| error(format!("'{word}' is not a number")))?;
-                }
-                mesh.positions.push(DVec3::from_array(coordinates));
+                let xyz = leading_numbers::<3>(
+                    words,
+                    3..=7,
+                    "a vertex needs x y z (and optionally w or r g b)",
+                )
+                .map_err(error)?;
+                mesh.positions.push(DVec3::from_array(xyz));
             }
             Some("vt") => {
-                let numbers: Vec<&str> = words.collect();
-                if !(1..=3).contains(&numbers.len()) {
-                    return Err(error(format!(
-                        "a texture coordinate needs u (and optionally v and w), found {} numbers",
-                        numbers.len()
-                    )));
-                }
-                let mut uv = [0.0; 2];
-                for (value, word) in uv.iter_mut().zip(&numbers) {
-                    *value = word
-                        .parse::<f64>()
-                        .map_err(|_| error(format!("'{word}' is not a number")))?;
-                }
+                let uv = leading_numbers::<2>(
+                    words,
+                    1..=3,
+                    "a texture coordinate needs u (and optionally v and w)",
+                )
+                .map_err(error)?;
                 coordinates.push(uv);
             }
             Some("f") => {
@@ -142,6 +128,26 @@ pub fn parse_obj(text: &str) -> Result<(Mesh, Vec<MeshWarning>), ObjError> {
         });
     }
     Ok((mesh, warnings))
+}
+
+/// The first `N` numbers of a statement (missing ones 0; those past `N` are not read), when it
+/// has a count of numbers in `counts`; `needs` says what it needs otherwise.
+fn leading_numbers<'a, const N: usize>(
+    words: impl Iterator<Item = &'a str>,
+    counts: std::ops::RangeInclusive<usize>,
+    needs: &str,
+) -> Result<[f64; N], String> {
+    let words: Vec<&str> = words.collect();
+    if !counts.contains(&words.len()) {
+        return Err(format!("{needs}, found {} numbers", words.len()));
+    }
+    let mut numbers = [0.0; N];
+    for (value, word) in numbers.iter_mut().zip(&words) {
+        *value = word
+            .parse::<f64>()
+            .map_err(|_| format!("'{word}' is not a number"))?;
+    }
+    Ok(numbers)
 }
 
 /// The statements of an OBJ file with the line each starts on: comments removed, lines ending

@@ -3,7 +3,7 @@
 use glam::DVec3;
 
 use super::PinSelector;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, axes_by_extent};
 
 /// Vertices a named selector picks.
 pub fn select_vertices(mesh: &Mesh, selector: PinSelector) -> Vec<u32> {
@@ -11,10 +11,7 @@ pub fn select_vertices(mesh: &Mesh, selector: PinSelector) -> Vec<u32> {
     let extent = hi - lo;
     match selector {
         PinSelector::Corners | PinSelector::TopCorners => {
-            // The sheet's plane is spanned by the two axes of largest extent.
-            let mut axes = [0usize, 1, 2];
-            axes.sort_by(|a, b| extent[*b].total_cmp(&extent[*a]));
-            let (u, v) = (axes[0], axes[1]);
+            let [u, v, _] = axes_by_extent(extent);
             let mut corners: Vec<u32> = [
                 (lo[u], lo[v]),
                 (hi[u], lo[v]),
