@@ -71,7 +71,8 @@ pub enum OrderArg {
     Auto,
     /// The mesh's own vertex order.
     Mesh,
-    /// Along a Z-order curve through space (for meshes numbered without care for locality).
+    /// In rows through space, as a grid is numbered (for meshes numbered without care for
+    /// locality).
     Spatial,
     /// Sorted by decreasing valence (the paper's texture layout).
     ValenceSorted,
