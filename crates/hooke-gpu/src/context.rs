@@ -280,3 +280,16 @@ impl GpuContext {
 pub fn gpu_required() -> bool {
     std::env::var("HOOKE_REQUIRE_GPU").is_ok_and(|v| v == "1")
 }
+
+/// The device for a test, or `None` with the reason printed when there is none; without one a
+/// test panics instead when [`gpu_required`].
+pub fn test_context() -> Option<Arc<GpuContext>> {
+    match GpuContext::new() {
+        Ok(context) => Some(context),
+        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
+        Err(error) => {
+            eprintln!("GPU solvers not tested: {error}");
+            None
+        }
+    }
+}

@@ -19,6 +19,7 @@ mod step;
 
 pub use context::{
     AdapterSummary, GpuContext, GpuError, OPTIONAL_FEATURES, gpu_required, list_adapters,
+    test_context,
 };
 pub use kernels::radix_sort;
 pub use methods::{Accumulation, GpuMemory, GpuMethod};

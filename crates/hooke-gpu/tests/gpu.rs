@@ -10,19 +10,8 @@ use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{
     Drag, MassModel, Model, ModelOptions, PointForce, SimError, Solver, StiffnessModel, Wind,
 };
-use hooke_gpu::{Accumulation, GpuContext, GpuError, GpuMethod, GpuSolver, gpu_required};
+use hooke_gpu::{Accumulation, GpuContext, GpuError, GpuMethod, GpuSolver, test_context};
 use hooke_testkit::{Broken, assert_bar_rejects_broken, reference, state_of};
-
-fn context() -> Option<Arc<GpuContext>> {
-    match GpuContext::new() {
-        Ok(context) => Some(context),
-        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
-        Err(error) => {
-            eprintln!("skipping GPU test: {error}");
-            None
-        }
-    }
-}
 
 /// A GPU solver of `scene`, driven by the scene's control.
 fn gpu_solver(
@@ -89,7 +78,9 @@ fn must_reject(method: GpuMethod, broken: Broken) -> bool {
 
 #[test]
 fn every_method_matches_the_reference_after_100_steps() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     eprintln!("adapter: {}", context.describe());
     for (mesh, vertices) in [
         (MeshSection::unit_grid(32, 32), 32 * 32),
@@ -126,7 +117,9 @@ fn every_method_matches_the_reference_after_100_steps() {
 
 #[test]
 fn deterministic_methods_are_bit_identical_run_to_run() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = benchmark_scene(MeshSection::unit_irregular(500, 3), 500);
     // Only a method the adapter lacks a feature for is skipped, and it says so; any other
     // construction error fails the test.
@@ -155,7 +148,9 @@ fn deterministic_methods_are_bit_identical_run_to_run() {
 
 #[test]
 fn pinned_vertices_stay_exactly_in_place() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = benchmark_scene(MeshSection::unit_grid(20, 20), 400);
     for mut solver in methods(&context, &scene) {
         solver.step(150).expect("stable");
@@ -171,7 +166,9 @@ fn pinned_vertices_stay_exactly_in_place() {
 
 #[test]
 fn wind_drags_and_point_forces_match_the_reference() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = benchmark_scene(MeshSection::unit_irregular(400, 9), 400);
     let options = ModelOptions {
         stiffness: StiffnessModel::InverseRestLength(20.0),
@@ -220,7 +217,9 @@ fn wind_drags_and_point_forces_match_the_reference() {
 
 #[test]
 fn blow_up_names_the_first_bad_step_and_vertex() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let mut scene = benchmark_scene(MeshSection::unit_grid(8, 8), 64);
     scene.material.dt = 3.0 * scene.max_stable_dt;
     let build = || gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
@@ -245,7 +244,9 @@ fn blow_up_names_the_first_bad_step_and_vertex() {
 
 #[test]
 fn fixed_point_overflow_is_reported_not_silent() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = benchmark_scene(MeshSection::unit_grid(8, 8), 64);
     let mut options = ModelOptions {
         stiffness: StiffnessModel::Uniform(scene.model.stiffnesses[0]),
@@ -265,7 +266,9 @@ fn fixed_point_overflow_is_reported_not_silent() {
 
 #[test]
 fn timed_steps_equal_plain_steps_with_either_clock() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = benchmark_scene(MeshSection::unit_grid(16, 16), 256);
     for method in [
         GpuMethod::Gather,
@@ -302,7 +305,9 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
 #[test]
 fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
     use hooke_gpu::render::{Camera, PickAt, Picker, SceneBounds};
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = benchmark_scene(MeshSection::unit_grid(8, 8), 64);
     let solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     let camera = Camera::framing(&SceneBounds::of(&scene.model));
@@ -351,7 +356,9 @@ fn picking_finds_the_vertex_under_the_cursor_on_the_gpu() {
 #[test]
 fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
     use hooke_testkit::{check_cloth_stays_out, cloth_onto_ball, cloth_onto_capsule};
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     for (scene, method) in [
         (cloth_onto_ball(), GpuMethod::Gather),
         (
@@ -367,7 +374,9 @@ fn cloth_dropped_on_a_ball_or_a_bar_never_enters_it_on_the_gpu() {
 
 #[test]
 fn a_moving_ball_pushes_through_a_curtain_on_the_gpu() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = hooke_testkit::curtain_and_moving_ball();
     let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     hooke_testkit::check_curtain_pushed(&mut solver, &scene, 1e-5);
@@ -378,7 +387,9 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
     use hooke_core::selfcollide::sort_by_key;
     use hooke_gpu::radix_sort::RadixSort;
     use rand::{RngExt, SeedableRng};
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     // Sizes off the 64-pair blocks, key ranges with many and few repeats, 8 to 32 bits.
     for (count, bits, range) in [
@@ -404,7 +415,9 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
 #[test]
 fn gpu_self_collision_step_agrees_with_the_reference_from_a_folded_state() {
     use hooke_testkit::folding_cloth;
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = folding_cloth();
     // A state folded without self-collision: many pairs for one step to push apart.
     let mut folder = reference(&scene);
@@ -436,7 +449,9 @@ fn gpu_self_collision_step_agrees_with_the_reference_from_a_folded_state() {
 #[test]
 fn gpu_self_collision_keeps_folded_layers_apart() {
     use hooke_testkit::{folding_cloth, interpenetrating_pairs};
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = folding_cloth();
     let count = |self_collision: bool| {
         let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
@@ -456,7 +471,9 @@ fn gpu_self_collision_keeps_folded_layers_apart() {
 
 #[test]
 fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_the_gpu() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = hooke_testkit::ball_onto_sheet();
     let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     hooke_testkit::check_ball_dropped_on_sheet(&mut solver, &scene);
@@ -465,7 +482,9 @@ fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_the_gpu() {
 #[test]
 fn a_pushed_ball_rolls_on_the_gpu_as_on_the_reference() {
     use hooke_core::collide::{Collider, Shape};
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let mut scene = hooke_testkit::ball_onto_sheet();
     // The ball sits on a ground plane beside the sheet and is pushed along x.
     let ball = &mut scene.model.collision.colliders[0];
@@ -508,7 +527,9 @@ fn a_pushed_ball_rolls_on_the_gpu_as_on_the_reference() {
 
 #[test]
 fn a_keyframed_collider_moves_the_same_on_the_gpu_as_on_the_reference() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = hooke_core::scene::SceneFile::load(Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../scenes/ball-through-curtain.toml"
@@ -555,7 +576,9 @@ fn a_keyframed_collider_moves_the_same_on_the_gpu_as_on_the_reference() {
 
 #[test]
 fn the_fig4_balls_move_the_same_on_the_gpu_as_on_the_reference() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = hooke_core::scene::SceneFile::load(Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../scenes/wind-and-balls.toml"
@@ -586,7 +609,9 @@ fn the_fig4_balls_move_the_same_on_the_gpu_as_on_the_reference() {
 
 #[test]
 fn a_ball_leaving_the_numbers_is_reported_on_the_gpu() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = hooke_testkit::exploding_ball();
     let mut solver = gpu_solver(&context, &scene, GpuMethod::Gather).expect("solver");
     let error = solver.step(5).expect_err("the ball explodes");
@@ -602,7 +627,9 @@ fn a_ball_leaving_the_numbers_is_reported_on_the_gpu() {
 #[test]
 fn a_ball_comes_to_rest_on_a_capsule_on_the_gpu_as_on_the_reference() {
     use hooke_core::collide::{Collider, Shape};
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let mut scene = hooke_testkit::ball_onto_sheet();
     // Beside the sheet, the ball drops 0.2 m onto a bar along z (radii 0.15 and 0.05 m).
     let ball = &mut scene.model.collision.colliders[0];

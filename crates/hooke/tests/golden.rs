@@ -9,7 +9,7 @@ use std::sync::Arc;
 use hooke::{OffscreenRun, Simulation, SolverChoice};
 use hooke_core::scene::{MeshSection, SceneFile};
 use hooke_gpu::render::Image;
-use hooke_gpu::{GpuContext, GpuMethod, gpu_required};
+use hooke_gpu::{GpuContext, GpuMethod, test_context};
 
 /// A channel may be off by this much (rasterisation and float differences between drivers).
 const CHANNEL_THRESHOLD: u8 = 24;
@@ -18,17 +18,6 @@ const DIFFERING_SHARE: f64 = 0.01;
 /// How far a pixel may land from its golden place: edges and one-pixel spring lines move by a
 /// pixel between rasterisers (lavapipe builds differ in how they round line ends).
 const SHIFT: u32 = 1;
-
-fn context() -> Option<Arc<GpuContext>> {
-    match GpuContext::new() {
-        Ok(context) => Some(context),
-        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
-        Err(error) => {
-            eprintln!("skipping golden test: {error}");
-            None
-        }
-    }
-}
 
 fn golden_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -89,14 +78,18 @@ fn check_golden(name: &str, actual: &Image) -> Result<(), String> {
 
 #[test]
 fn cloth_pinned_render_matches_golden() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let image = render(&context, false, false);
     check_golden("cloth-pinned", &image).unwrap_or_else(|e| panic!("cloth-pinned: {e}"));
 }
 
 #[test]
 fn strain_wireframe_render_matches_golden() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let image = render(&context, true, true);
     check_golden("cloth-pinned-strain-wire", &image)
         .unwrap_or_else(|e| panic!("strain wireframe: {e}"));
@@ -104,7 +97,9 @@ fn strain_wireframe_render_matches_golden() {
 
 #[test]
 fn comparison_catches_a_change() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     if std::env::var("HOOKE_BLESS").is_ok_and(|v| v == "1") {
         return;
     }
@@ -123,7 +118,9 @@ fn comparison_catches_a_change() {
 
 #[test]
 fn renders_are_identical_run_to_run() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     assert_eq!(
         render(&context, false, false),
         render(&context, false, false)

@@ -2,14 +2,13 @@
 //! read-backs, and the reference's float64 spring forces to compare with.
 
 use std::path::Path;
-use std::sync::Arc;
 
 use glam::DVec3;
 use hooke_core::diagnostics::spring_force_on_a;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{Model, State};
 
-use crate::context::{GpuContext, gpu_required};
+use crate::context::GpuContext;
 use crate::gpu::{read_back, zeroed};
 use crate::kernels::ScatterBuffers;
 use crate::kernels::accumulate_fixed::AccumulateFixed;
@@ -18,18 +17,7 @@ use crate::kernels::force_springs::ForceSprings;
 use crate::methods::{Accumulation, GpuMethod};
 use crate::model::{GpuModel, vec4s};
 use crate::state::GpuState;
-
-/// The device, or `None` (a printed skip) when there is none and HOOKE_REQUIRE_GPU is unset.
-pub fn context() -> Option<Arc<GpuContext>> {
-    match GpuContext::new() {
-        Ok(context) => Some(context),
-        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
-        Err(error) => {
-            eprintln!("skipping kernel test: {error}");
-            None
-        }
-    }
-}
+pub use crate::test_context as context;
 
 /// A 12 x 12 irregular cloth (valences 3..10) and a state in which every vertex is moved off
 /// its rest place and moving, so every spring pulls or pushes.
