@@ -216,6 +216,19 @@ fn info_reports_valences_stability_and_memory() {
     assert_eq!(info["vertices"], 144);
     assert_eq!(info["valence_histogram"][6], 10 * 10);
     assert_eq!(info["memory"].as_array().map(Vec::len), Some(2));
+    assert_eq!(info["bending_springs"], 0);
+
+    // Bending springs: one across each of the 12 x 12 grid's 341 interior edges.
+    let bent = format!("{SMALL_CLOTH}\n[bending]\nstiffness = 20.0\n");
+    let scene = write(dir.path(), "bent.toml", &bent);
+    let table = text(&hooke(&["info", path_str(&scene)]).stdout);
+    assert!(
+        table.contains("726 springs (341 of them bending)"),
+        "{table}"
+    );
+    let json = hooke(&["info", path_str(&scene), "--format", "json"]);
+    let info: serde_json::Value = serde_json::from_slice(&json.stdout).expect("json");
+    assert_eq!(info["bending_springs"], 341);
 }
 
 #[test]
@@ -257,6 +270,42 @@ fn bench_prints_a_row_per_mesh_and_method() {
         );
     }
     assert!(rows.iter().any(|r| r["force_accumulation_ms"].is_null()));
+}
+
+#[test]
+fn bench_adds_bending_springs_to_every_workload() {
+    let result = hooke(&[
+        "bench",
+        "--sizes",
+        "16",
+        "--irregular",
+        "0",
+        "--shuffled",
+        "0",
+        "--methods",
+        "gather",
+        "--steps",
+        "10",
+        "--warmup",
+        "1",
+        "--bending",
+        "0.1",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let row = &report["rows"][0];
+    // 16^2 grid: 705 edges, of which 645 are interior, each with a bending spring.
+    assert_eq!(row["mesh"], "grid 16^2 + bending");
+    assert_eq!(row["springs"], 705 + 645);
+    let refused = hooke(&["bench", "--sizes", "16", "--bending=-1"]);
+    assert!(!refused.status.success());
+    assert!(
+        text(&refused.stderr).contains("--bending -1: bending.stiffness must be positive"),
+        "{}",
+        text(&refused.stderr)
+    );
 }
 
 /// Whether a GPU adapter exists; without one GPU tests skip, unless HOOKE_REQUIRE_GPU=1.

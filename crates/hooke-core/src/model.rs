@@ -103,6 +103,9 @@ pub struct Model {
     pub rest_lengths: Vec<f64>,
     /// Length `n_springs`: stiffness `D_ij` (N/m).
     pub stiffnesses: Vec<f64>,
+    /// The last this many springs are bending springs (see [`Model::add_bending_springs`]);
+    /// the others join the mesh's edges.
+    pub bending_springs: usize,
     /// Length `n_vertices`: point mass `m_i` (kg).
     pub masses: Vec<f64>,
     /// Length `n_vertices`: whether the vertex is held in place.
@@ -221,11 +224,51 @@ impl Model {
             spring_ends,
             rest_lengths,
             stiffnesses,
+            bending_springs: 0,
             masses,
             pinned,
             adjacency,
             collision: Collision::default(),
         })
+    }
+
+    /// Adds bending springs of `stiffness` N/m between `pairs` of vertices (the mesh's
+    /// [`Mesh::bending_pairs`]), at rest at their initial length times the rest-length scale
+    /// as the edge springs are. They are ordinary springs to every solver: they only join
+    /// vertices two triangles apart, which resists folding across the edge between them.
+    pub fn add_bending_springs(
+        &mut self,
+        pairs: &[[u32; 2]],
+        stiffness: f64,
+        rest_length_scale: f64,
+    ) -> Result<(), ModelError> {
+        let stiffness = positive("bending.stiffness", stiffness)?;
+        for &[a, b] in pairs {
+            let length =
+                self.initial_positions[a as usize].distance(self.initial_positions[b as usize]);
+            self.spring_ends.push([a, b]);
+            self.rest_lengths.push(length * rest_length_scale);
+            self.stiffnesses.push(stiffness);
+        }
+        self.bending_springs += pairs.len();
+        self.adjacency = Adjacency::from_springs(self.vertex_count(), &self.spring_ends);
+        Ok(())
+    }
+
+    /// This model with every bending spring's stiffness times `scale` (0 turns them off; the
+    /// edge springs keep theirs).
+    pub fn with_bending_scale(&self, scale: f64) -> Model {
+        let mut scaled = self.clone();
+        let first = self.spring_count() - self.bending_springs;
+        for k in &mut scaled.stiffnesses[first..] {
+            *k *= scale;
+        }
+        scaled
+    }
+
+    /// True if spring `s` is a bending spring rather than a mesh edge.
+    pub fn is_bending(&self, spring: usize) -> bool {
+        spring >= self.spring_count() - self.bending_springs
     }
 
     /// The stiffness of spring `s` under a material's stiffness scale, N/m.

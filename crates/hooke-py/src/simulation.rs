@@ -119,15 +119,17 @@ impl Simulation {
     /// (checked by the same code, with the same messages). `stiffness` (N/m) is a number or
     /// one per spring (in `springs(triangles)` order); give exactly one of `mass_total` (kg),
     /// `mass_per_vertex` (kg, a number or one per vertex) or `area_density` (kg/m^2).
-    /// `colliders`, `wind` and `self_collision` are dicts (a list of them for colliders) with
-    /// the keys of the scene file's `[[collider]]`, `[wind]` and `[self_collision]`. `uvs`, an
+    /// `colliders`, `wind`, `self_collision` and `bending` are dicts (a list of them for
+    /// colliders) with the keys of the scene file's `[[collider]]`, `[wind]`,
+    /// `[self_collision]` and `[bending]`. `uvs`, an
     /// `(N, 2)` array of texture coordinates per vertex, goes into OBJ and USD frames.
     #[staticmethod]
     #[pyo3(signature = (
         vertices, triangles, *, stiffness, mass_total = None, mass_per_vertex = None,
         area_density = None, stiffness_model = "uniform", damping = 0.0, pins = None,
         select = None, dt = None, gravity = [0.0, -9.81, 0.0], wind = None, thickness = 0.0,
-        colliders = None, self_collision = None, uvs = None, backend = "cpu", method = None,
+        colliders = None, self_collision = None, bending = None, uvs = None, backend = "cpu",
+        method = None,
         accumulation = None, threads = None, allow_unstable = false
     ))]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of a Python call
@@ -148,6 +150,7 @@ impl Simulation {
         thickness: f64,
         colliders: Option<&Bound<'_, PyAny>>,
         self_collision: Option<&Bound<'_, PyAny>>,
+        bending: Option<&Bound<'_, PyAny>>,
         uvs: Option<&Bound<'_, PyAny>>,
         backend: &str,
         method: Option<&str>,
@@ -238,6 +241,7 @@ impl Simulation {
             ("wind", wind),
             ("collider", colliders),
             ("self_collision", self_collision),
+            ("bending", bending),
         ] {
             if let Some(value) = value {
                 table.insert(key.into(), convert::to_toml(value, key)?);
@@ -252,7 +256,8 @@ impl Simulation {
             .build_with_mesh(mesh, warnings, name, true)
             .or_raise()?;
         if let PerItem::Each(values) = stiffness {
-            scene.model.stiffnesses = values;
+            // One per edge spring; bending springs, after them, keep their own.
+            scene.model.stiffnesses[..values.len()].copy_from_slice(&values);
         }
         if let Some(PerItem::Each(values)) = masses {
             scene.model.masses = values;
@@ -287,6 +292,12 @@ impl Simulation {
     #[getter]
     fn spring_count(&self) -> PyResult<usize> {
         self.with(|s| Ok(s.model().spring_count()))
+    }
+
+    /// Of `spring_count`, the bending springs: the last ones in `springs()`.
+    #[getter]
+    fn bending_spring_count(&self) -> PyResult<usize> {
+        self.with(|s| Ok(s.model().bending_springs))
     }
 
     #[getter]
@@ -560,6 +571,18 @@ impl Simulation {
             }
         };
         self.with(|s| s.set_self_collision(config).or_raise())
+    }
+
+    /// Pins `vertex` where it is, or at `at` (m, at rest there), until `unpin`: a gripper or a
+    /// hanger put on while running. The solver is rebuilt, carrying the run on.
+    #[pyo3(signature = (vertex, at = None))]
+    fn pin(&self, vertex: u32, at: Option<[f64; 3]>) -> PyResult<()> {
+        self.with(|s| s.pin(vertex, at.map(DVec3::from_array)).or_raise())
+    }
+
+    /// Lets a pinned vertex (a scene pin too) move again, from rest where it is.
+    fn unpin(&self, vertex: u32) -> PyResult<()> {
+        self.with(|s| s.unpin(vertex).or_raise())
     }
 
     /// Kinetic, elastic, gravitational and total energy, J.

@@ -3,7 +3,7 @@
 import threading
 import tracemalloc
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -220,6 +220,51 @@ def test_per_spring_stiffness_and_per_vertex_mass_arrays_are_used() -> None:
     stiffness = np.full(len(springs), 50.0)
     stiffness[::2] = 25.0
     assert not np.array_equal(run(stiffness, 0.01), uniform)
+
+
+def test_bending_springs_join_the_far_corners_of_triangle_pairs() -> None:
+    vertices, triangles = sheet(8)
+    springs = hooke.springs(triangles)
+
+    def build(**options: Any) -> hooke.Simulation:
+        return hooke.Simulation.from_arrays(
+            vertices,
+            triangles,
+            stiffness=np.full(len(springs), 50.0),
+            mass_total=0.1,
+            select=["corners"],
+            **options,
+        )
+
+    bent = build(bending={"stiffness": 5.0})
+    # One bending spring across each interior edge of the 8 x 8 grid, after the edge springs.
+    interior = 7 * 6 * 2 + 7 * 7
+    assert (bent.spring_count, bent.bending_spring_count) == (len(springs) + interior, interior)
+    ends = bent.springs()
+    np.testing.assert_array_equal(ends[: len(springs)], springs)
+    mesh_edges = {tuple(e) for e in springs.tolist()}
+    assert not any(tuple(e) in mesh_edges for e in ends[len(springs) :].tolist())
+    assert build().bending_spring_count == 0
+    with pytest.raises(hooke.InputError, match=r"bending\.stiffness: must be a positive number"):
+        build(bending={"stiffness": -1.0})
+
+
+def test_a_vertex_pinned_while_running_stays_there_until_unpinned() -> None:
+    vertices, triangles = sheet(8)
+    sim = hooke.Simulation.from_arrays(
+        vertices, triangles, stiffness=50.0, mass_total=0.1, select=["corners"], dt=1e-3
+    )
+    sim.step(100)
+    middle = 27
+    sim.pin(middle, at=(0.45, 1.2, 0.45))
+    assert middle in sim.pins() and sim.steps_taken == 100
+    sim.step(300)
+    np.testing.assert_allclose(sim.positions()[middle], (0.45, 1.2, 0.45), atol=1e-6)
+    sim.unpin(middle)
+    sim.step(300)
+    assert sim.positions()[middle][1] < 1.15
+    with pytest.raises(hooke.InputError, match="pinned vertex 64 does not exist"):
+        sim.pin(64)
 
 
 # ---- live control ---------------------------------------------------------------------------

@@ -19,11 +19,12 @@ macro_rules! offered {
 }
 
 /// The paper's Fig. 2, 3 and 4 first, then the other scenes that need no mesh file.
-pub const SCENES: [Offered; 7] = offered![
+pub const SCENES: [Offered; 8] = offered![
     "cloth-pinned.toml",
     "self-collision.toml",
     "wind-and-balls.toml",
     "cloth-on-ball.toml",
+    "stiff-cloth-on-ball.toml",
     "cloth-on-bar.toml",
     "ball-through-curtain.toml",
     "irregular-pinned.toml",

@@ -83,6 +83,10 @@ pub struct LiveSimulation {
     pub choice: Choice,
     pub choices: Vec<Choice>,
     pub stiffness_scale: f64,
+    /// The scene's bending springs' stiffness times this (0: off).
+    pub bending_scale: f64,
+    /// The bending scale of the running model.
+    running_bending_scale: f64,
     pub damping: f64,
     /// dt as a fraction of the stability bound.
     pub dt_fraction: f64,
@@ -155,6 +159,8 @@ impl LiveSimulation {
                 .self_collision
                 .unwrap_or_else(|| SelfCollision::for_model(&scene.model)),
             stiffness_scale: 1.0,
+            bending_scale: 1.0,
+            running_bending_scale: 1.0,
             steps_per_frame: 10,
             scene,
             engine,
@@ -267,10 +273,24 @@ impl LiveSimulation {
     /// Sends what the controls changed to the engine, in place: the material, the control,
     /// the self-collision set-up (only that builds anything: the GPU's self-collision pass).
     pub fn apply(&mut self) {
+        if self.bending_scale != self.running_bending_scale {
+            // Other stiffnesses: the solver is built anew, carrying the run on (and the pins
+            // added since the start).
+            let mut model = self.scene.model.with_bending_scale(self.bending_scale);
+            model.pinned.clone_from(&self.model().pinned);
+            self.running_bending_scale = self.bending_scale;
+            if let Err(error) = self.engine.set_model(model) {
+                self.message = Some(error.to_string());
+                self.paused = true;
+                return;
+            }
+            let running = *self.engine.material();
+            self.max_stable_dt = self.engine.stability_limit_under(&running).max_dt;
+        }
+        let mut result = Ok(());
         let material = self.material();
         let control = self.control();
         let self_collision = self.self_collision_enabled.then_some(self.self_collision);
-        let mut result = Ok(());
         if material != *self.engine.material() {
             result = result.and(self.engine.set_material(material));
         }
@@ -284,6 +304,34 @@ impl LiveSimulation {
             self.message = Some(error.to_string());
             self.paused = true;
         }
+    }
+
+    /// Pins the vertex of `grab` (the grabbed vertex and where the cursor holds it) there, at
+    /// rest: the viewer's `p` key lets go of the cloth and leaves it hanging from that point.
+    pub fn pin_grabbed(&mut self, grab: Option<(u32, Vec3)>) {
+        let Some((vertex, target)) = grab else {
+            return;
+        };
+        if let Err(error) = self.engine.pin(vertex, Some(target.as_dvec3())) {
+            self.message = Some(error.to_string());
+        }
+    }
+
+    /// Lets go of every vertex pinned since the start (the scene's own pins stay).
+    pub fn unpin_added(&mut self) {
+        let mut model = self.model().clone();
+        model.pinned.clone_from(&self.scene.model.pinned);
+        if model.pinned != self.model().pinned
+            && let Err(error) = self.engine.set_model(model)
+        {
+            self.message = Some(error.to_string());
+        }
+    }
+
+    /// Vertices pinned since the start, beyond the scene's own.
+    pub fn added_pins(&self) -> usize {
+        let (now, scene) = (&self.model().pinned, &self.scene.model.pinned);
+        now.iter().zip(scene).filter(|(a, b)| **a && !**b).count()
     }
 
     /// Moves the running simulation onto another solver (a user action: it reads the state
@@ -317,6 +365,7 @@ impl LiveSimulation {
         ) {
             Ok(engine) => {
                 self.engine = engine;
+                self.running_bending_scale = 1.0;
                 self.message = None;
                 self.apply();
             }

@@ -104,6 +104,8 @@ pub enum EngineError {
     Model(#[from] ModelError),
     #[error(transparent)]
     Simulation(#[from] SimError),
+    #[error("the new model has {given} vertices, the running one {running}")]
+    VertexCountChanged { given: usize, running: usize },
 }
 
 /// A mesh and material given as arrays, for [`model_from_arrays`].
@@ -344,17 +346,79 @@ impl Simulation {
 
     /// Moves the running simulation onto another solver, carrying on where it is.
     pub fn switch_solver(&mut self, choice: SolverChoice) -> Result<(), EngineError> {
+        self.rebuild(self.model.clone(), choice)
+    }
+
+    /// Carries the run on with `model` in place of the running one: the same vertices, other
+    /// springs or stiffnesses (the viewer's bending control). The solver is built anew.
+    pub fn set_model(&mut self, model: Model) -> Result<(), EngineError> {
+        if model.vertex_count() != self.model.vertex_count() {
+            return Err(EngineError::VertexCountChanged {
+                given: model.vertex_count(),
+                running: self.model.vertex_count(),
+            });
+        }
+        self.rebuild(model, self.choice)
+    }
+
+    /// Pins `vertex` where it is, or at `at` (at rest there), as a scene pin: it stays until
+    /// [`Simulation::unpin`]. The solver is built anew, carrying the run on.
+    pub fn pin(&mut self, vertex: u32, at: Option<DVec3>) -> Result<(), EngineError> {
+        let v = self.vertex_index(vertex)?;
+        let mut snapshot = self.snapshot()?;
+        if let Some(at) = at {
+            snapshot.state.positions[v] = at;
+            snapshot.state.previous_positions[v] = at;
+        }
+        let mut model = self.model.clone();
+        model.pinned[v] = true;
+        self.rebuild_from(model, self.choice, &snapshot)
+    }
+
+    /// Lets a pinned vertex (a scene pin too) move again, from rest where it is.
+    pub fn unpin(&mut self, vertex: u32) -> Result<(), EngineError> {
+        let v = self.vertex_index(vertex)?;
+        let mut model = self.model.clone();
+        model.pinned[v] = false;
+        self.set_model(model)
+    }
+
+    fn vertex_index(&self, vertex: u32) -> Result<usize, EngineError> {
+        let count = self.model.vertex_count();
+        if (vertex as usize) < count {
+            Ok(vertex as usize)
+        } else {
+            Err(EngineError::Model(ModelError::PinOutOfRange {
+                index: vertex,
+                vertex_count: count,
+            }))
+        }
+    }
+
+    /// A new solver of `model` on `choice`, continuing from where this one is.
+    fn rebuild(&mut self, model: Model, choice: SolverChoice) -> Result<(), EngineError> {
         let snapshot = self.snapshot()?;
+        self.rebuild_from(model, choice, &snapshot)
+    }
+
+    /// A new solver of `model` on `choice`, continuing from `snapshot`.
+    fn rebuild_from(
+        &mut self,
+        model: Model,
+        choice: SolverChoice,
+        snapshot: &Snapshot,
+    ) -> Result<(), EngineError> {
         let gpu = match (choice, &self.gpu) {
             (SolverChoice::Gpu(_), None) => Some(GpuContext::new()?),
             (_, gpu) => gpu.clone(),
         };
-        let mut engine = build(&self.model, &self.material, choice, gpu.as_ref())?;
+        let mut engine = build(&model, &self.material, choice, gpu.as_ref())?;
         let solver = engine.solver_mut();
         solver.set_control(&self.control)?;
         solver.set_self_collision(self.self_collision)?;
-        solver.restore(&snapshot)?;
+        solver.restore(snapshot)?;
         self.engine = engine;
+        self.model = model;
         self.choice = choice;
         self.gpu = gpu;
         Ok(())

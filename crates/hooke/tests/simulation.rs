@@ -8,19 +8,8 @@ use hooke::{Control, Material, Simulation, SolverChoice};
 use hooke_core::scene::Scene;
 use hooke_core::{BallPush, Drag, Wind};
 use hooke_cpu::{CpuOptions, Method};
-use hooke_gpu::{Accumulation, GpuContext, GpuMethod, gpu_required};
+use hooke_gpu::{Accumulation, GpuMethod, test_context};
 use hooke_testkit::shipped_scene;
-
-fn context() -> Option<Arc<GpuContext>> {
-    match GpuContext::new() {
-        Ok(context) => Some(context),
-        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
-        Err(error) => {
-            eprintln!("GPU solvers not tested: {error}");
-            None
-        }
-    }
-}
 
 /// The solvers whose results are deterministic, so equal inputs give bit-identical states.
 fn deterministic_choices(gpu: bool) -> Vec<SolverChoice> {
@@ -88,7 +77,7 @@ fn other_material(material: &Material) -> Material {
 
 #[test]
 fn live_control_and_material_edits_equal_a_solver_built_with_them() {
-    let context = context();
+    let context = test_context();
     let scene = shipped_scene("wind-and-balls.toml");
     let control = busy_control(&scene);
     let material = other_material(&scene.material);
@@ -125,7 +114,7 @@ fn live_control_and_material_edits_equal_a_solver_built_with_them() {
 
 #[test]
 fn a_run_continued_from_a_snapshot_equals_the_uninterrupted_run() {
-    let context = context();
+    let context = test_context();
     // Dynamic balls and wind; and a keyframed collider on a repeating path.
     for name in ["wind-and-balls.toml", "ball-through-curtain.toml"] {
         let scene = shipped_scene(name);
@@ -150,7 +139,9 @@ fn a_run_continued_from_a_snapshot_equals_the_uninterrupted_run() {
 
 #[test]
 fn gpu_control_material_and_solver_status_need_no_new_pipelines() {
-    let Some(context) = context() else { return };
+    let Some(context) = test_context() else {
+        return;
+    };
     let scene = shipped_scene("wind-and-balls.toml");
     for method in [
         GpuMethod::Gather,
@@ -195,7 +186,7 @@ fn gpu_control_material_and_solver_status_need_no_new_pipelines() {
 
 #[test]
 fn switching_solvers_carries_the_run_on() {
-    let context = context();
+    let context = test_context();
     let scene = shipped_scene("wind-and-balls.toml");
     let reference = SolverChoice::Reference;
     let mut switched = Simulation::from_scene(&scene, reference, context.clone()).expect("ok");

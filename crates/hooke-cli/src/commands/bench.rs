@@ -70,6 +70,11 @@ pub struct BenchArgs {
     /// cost shows as the collision phase. Distance: half the shortest spring; cells twice that.
     #[arg(long, value_name = "K")]
     pub self_collision: Option<u32>,
+    /// Add bending springs (one across every interior edge) with this fraction of the edge
+    /// springs' stiffness to every workload: they about double the valences, and this shows
+    /// what that costs each method.
+    #[arg(long, value_name = "FRACTION")]
+    pub bending: Option<f64>,
     /// Untimed steps before timing.
     #[arg(long, default_value_t = 50)]
     pub warmup: u32,
@@ -160,6 +165,18 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     for (name, workload) in meshes {
         let mut scene = benchmark_scene(workload).with_context(|| format!("building {name}"))?;
+        let name = match args.bending {
+            Some(_) => format!("{name} + bending"),
+            None => name,
+        };
+        if let Some(fraction) = args.bending {
+            let stiffness = fraction * scene.model.stiffnesses[0];
+            let pairs = scene.mesh.bending_pairs();
+            scene
+                .model
+                .add_bending_springs(&pairs, stiffness, 1.0)
+                .map_err(|e| anyhow::anyhow!("--bending {fraction}: {e}"))?;
+        }
         if let Some(grids) = args.self_collision {
             anyhow::ensure!(
                 (1..=selfcollide::MAX_GRIDS).contains(&grids),

@@ -68,6 +68,8 @@ struct Info {
     vertices: usize,
     triangles: usize,
     springs: usize,
+    /// Of `springs`, those joining the far vertices of triangle pairs (`[bending]`).
+    bending_springs: usize,
     pinned: usize,
     total_mass_kg: f64,
     /// `valence_histogram[v]` vertices have v springs.
@@ -162,6 +164,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         vertices: n_v,
         triangles: model.triangles.len(),
         springs: n_e,
+        bending_springs: model.bending_springs,
         pinned: model.pinned.iter().filter(|p| **p).count(),
         total_mass_kg: model.total_mass(),
         mean_valence: 2.0 * n_e as f64 / n_v as f64,
@@ -190,8 +193,12 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
 
 fn print_info(info: &Info) {
     println!("scene           {}", info.scene);
+    let bending = match info.bending_springs {
+        0 => String::new(),
+        n => format!(" ({n} of them bending)"),
+    };
     println!(
-        "mesh            {} vertices, {} triangles, {} springs, {} pinned",
+        "mesh            {} vertices, {} triangles, {} springs{bending}, {} pinned",
         info.vertices, info.triangles, info.springs, info.pinned
     );
     println!("total mass      {:.6} kg", info.total_mass_kg);

@@ -285,6 +285,13 @@ impl Viewer {
                     Key::Character(c) if c == "w" => {
                         self.view.options.wireframe = !self.view.options.wireframe
                     }
+                    Key::Character(c) if c == "p" => {
+                        // Let go of the cloth, leaving the grabbed vertex pinned where it is held.
+                        let grab = self.simulation.grab;
+                        self.view.pointer.release(&mut self.simulation);
+                        self.simulation.pin_grabbed(grab);
+                    }
+                    Key::Character(c) if c == "u" => self.simulation.unpin_added(),
                     _ => {}
                 }
             }

@@ -19,6 +19,11 @@ pub fn show(
         .show(root, |ui| {
             ui.heading("hooke");
             ui.label("left-drag: grab the cloth, or orbit; right-drag: pan; wheel: zoom");
+            ui.label("p while dragging: pin the vertex there; u: unpin those");
+            let added = simulation.added_pins();
+            if added > 0 && ui.button(format!("Unpin the {added} pinned here")).clicked() {
+                simulation.unpin_added();
+            }
             ui.separator();
 
             let mut choice = simulation.choice;
@@ -60,6 +65,16 @@ pub fn show(
                 .changed()
             {
                 changed = true;
+            }
+            if simulation.model().bending_springs > 0 {
+                // Rebuilds the solver: applied when the slider is let go, not on every move.
+                let slider = ui.add(
+                    egui::Slider::new(&mut simulation.bending_scale, 0.0..=4.0)
+                        .text("bending x (0: off)"),
+                );
+                changed |= slider.drag_stopped() || (slider.changed() && !slider.dragged());
+            } else {
+                ui.label("no bending springs (add [bending] to the scene)");
             }
             changed |= ui
                 .add(

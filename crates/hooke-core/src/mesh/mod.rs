@@ -147,6 +147,11 @@ impl std::fmt::Display for MeshWarning {
     }
 }
 
+/// The undirected edge `{p, q}` as one sortable number: the lower index in the high half.
+fn edge_key(p: u32, q: u32) -> u64 {
+    (u64::from(p.min(q)) << 32) | u64::from(p.max(q))
+}
+
 /// Axis-aligned bounding box `(min, max)` of points.
 pub fn bounds(points: &[DVec3]) -> (DVec3, DVec3) {
     points.iter().fold(
@@ -185,8 +190,7 @@ impl Mesh {
         let mut keys: Vec<u64> = Vec::with_capacity(self.triangles.len() * 3);
         for t in &self.triangles {
             for (p, q) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-                let (a, b) = if p < q { (p, q) } else { (q, p) };
-                keys.push((u64::from(a) << 32) | u64::from(b));
+                keys.push(edge_key(p, q));
             }
         }
         keys.sort_unstable();
@@ -203,6 +207,36 @@ impl Mesh {
             }
         }
         edges
+    }
+
+    /// The far vertices of every two triangles that share an edge, as sorted pairs, each once:
+    /// the classic distance-2 bending springs, which resist folding across that edge. Pairs
+    /// an edge already joins (or that name one vertex twice) are left out; an edge shared by
+    /// more than two triangles pairs every two of them.
+    pub fn bending_pairs(&self) -> Vec<[u32; 2]> {
+        // (edge key, far vertex) per triangle corner, sorted so an edge's triangles are adjacent.
+        let mut opposite: Vec<(u64, u32)> = Vec::with_capacity(self.triangles.len() * 3);
+        for t in &self.triangles {
+            for k in 0..3 {
+                let (p, q, far) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                opposite.push((edge_key(p, q), far));
+            }
+        }
+        opposite.sort_unstable();
+        let edges: std::collections::HashSet<u64> = opposite.iter().map(|(e, _)| *e).collect();
+        let mut pairs: Vec<[u32; 2]> = Vec::new();
+        for shared in opposite.chunk_by(|x, y| x.0 == y.0) {
+            for (i, &(_, c)) in shared.iter().enumerate() {
+                for &(_, d) in &shared[i + 1..] {
+                    if c != d && !edges.contains(&edge_key(c, d)) {
+                        pairs.push([c.min(d), c.max(d)]);
+                    }
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        pairs
     }
 
     /// Checks that the mesh can be simulated; `source_name` (a file name or generator) is put in every message.
@@ -424,6 +458,30 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             ..Mesh::default()
         }
+    }
+
+    #[test]
+    fn bending_pairs_join_the_far_corners_across_each_shared_edge() {
+        // Two triangles sharing the diagonal 0-2: one pair, across it.
+        assert_eq!(square().bending_pairs(), [[1, 3]]);
+        // On a grid every interior edge gives one pair, none of them an edge.
+        let sheet = grid(6, 5, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
+        let edges = sheet.edges();
+        let interior = edges.iter().filter(|e| e.triangle_count == 2).count();
+        let pairs = sheet.bending_pairs();
+        assert_eq!(pairs.len(), interior);
+        assert!(
+            pairs
+                .iter()
+                .all(|[a, b]| a < b && !edges.iter().any(|e| (e.a, e.b) == (*a, *b)))
+        );
+        // A tetrahedron's far corners across an edge are already joined: no pairs.
+        let tetrahedron = Mesh {
+            positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],
+            triangles: vec![[0, 1, 2], [0, 3, 1], [1, 3, 2], [0, 2, 3]],
+            ..Mesh::default()
+        };
+        assert!(tetrahedron.bending_pairs().is_empty());
     }
 
     #[test]

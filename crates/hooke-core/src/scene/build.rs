@@ -77,12 +77,10 @@ impl SceneFile {
                 ));
             }
         };
-        let stiffness_factors = material
-            .stiffness_property
-            .as_deref()
-            .map(|name| vertex_property(&mesh, name, "material.stiffness_property", &invalid))
-            .transpose()?;
+        let stiffness_factors = self.stiffness_factors(&mesh, &invalid)?;
+        let bending = self.bending.as_ref().filter(|b| b.enabled);
         for (field, value) in [
+            ("bending.stiffness", bending.map(|b| b.stiffness)),
             ("material.mass.total", material.mass.total),
             ("material.mass.per_vertex", material.mass.per_vertex),
             ("material.mass.area_density", material.mass.area_density),
@@ -125,6 +123,15 @@ impl SceneFile {
         if let Some(masses) = mass_property {
             model.masses = masses;
         }
+        if let Some(bending) = bending {
+            model
+                .add_bending_springs(
+                    &mesh.bending_pairs(),
+                    bending.stiffness,
+                    material.rest_length_scale,
+                )
+                .map_err(|e| invalid("bending", e.to_string()))?;
+        }
         if let Some(factors) = stiffness_factors {
             for (k, [a, b]) in model.stiffnesses.iter_mut().zip(&model.spring_ends) {
                 *k *= 0.5 * (factors[*a as usize] + factors[*b as usize]);
@@ -160,6 +167,25 @@ impl SceneFile {
         scene.set_time_step(self.simulation.dt, path, allow_unstable)?;
         Ok(scene)
     }
+}
+
+/// The vertices of `mesh` inside the box from `min` to `max` (boundary included); a box that
+/// holds none is an error, made by `invalid`, since it is a mistake in the scene.
+fn vertices_in_box(
+    mesh: &Mesh,
+    min: [f64; 3],
+    max: [f64; 3],
+    invalid: &dyn Fn(String) -> SceneError,
+) -> Result<Vec<u32>, SceneError> {
+    let (lo, hi) = (DVec3::from_array(min), DVec3::from_array(max));
+    let inside: Vec<u32> = (0..mesh.vertex_count() as u32)
+        .filter(|&i| {
+            let p = mesh.positions[i as usize];
+            p.cmpge(lo).all() && p.cmple(hi).all()
+        })
+        .collect();
+    require(!inside.is_empty(), || invalid("contains no vertex".into()))?;
+    Ok(inside)
 }
 
 /// The mesh's per-vertex property `name`, every value positive and finite; `field` is the
@@ -367,20 +393,42 @@ impl SceneFile {
             pinned.extend(select_vertices(mesh, *selector));
         }
         for (k, b) in self.pins.boxes.iter().enumerate() {
-            let (lo, hi) = (DVec3::from_array(b.min), DVec3::from_array(b.max));
-            let inside: Vec<u32> = (0..count as u32)
-                .filter(|&i| {
-                    let p = mesh.positions[i as usize];
-                    p.cmpge(lo).all() && p.cmple(hi).all()
-                })
-                .collect();
-            require(!inside.is_empty(), || {
-                invalid(&format!("pins.boxes[{k}]"), "contains no vertex".into())
-            })?;
-            pinned.extend(inside);
+            pinned.extend(vertices_in_box(mesh, b.min, b.max, &|message| {
+                invalid(&format!("pins.boxes[{k}]"), message)
+            })?);
         }
         pinned.sort_unstable();
         pinned.dedup();
         Ok(pinned)
+    }
+
+    /// Per-vertex stiffness factors from `material.stiffness_property` and the
+    /// `material.stiffness_region` boxes, multiplied; `None` when the scene has neither.
+    fn stiffness_factors(
+        &self,
+        mesh: &Mesh,
+        invalid: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<Option<Vec<f64>>, SceneError> {
+        let material = &self.material;
+        let mut factors = material
+            .stiffness_property
+            .as_deref()
+            .map(|name| vertex_property(mesh, name, "material.stiffness_property", invalid))
+            .transpose()?;
+        for (k, region) in material.stiffness_regions.iter().enumerate() {
+            let field = format!("material.stiffness_region[{k}]");
+            require(region.factor > 0.0 && region.factor.is_finite(), || {
+                invalid(
+                    &format!("{field}.factor"),
+                    format!("must be a positive number, found {}", region.factor),
+                )
+            })?;
+            let inside = vertices_in_box(mesh, region.min, region.max, &|m| invalid(&field, m))?;
+            let factors = factors.get_or_insert_with(|| vec![1.0; mesh.vertex_count()]);
+            for v in inside {
+                factors[v as usize] *= region.factor;
+            }
+        }
+        Ok(factors)
     }
 }

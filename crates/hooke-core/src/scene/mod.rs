@@ -112,6 +112,7 @@ impl SceneFile {
                 stiffness: 0.25 * mass / (dt * dt),
                 stiffness_model: StiffnessKind::Uniform,
                 stiffness_property: None,
+                stiffness_regions: Vec::new(),
                 damping: 0.01 * mass / dt,
                 rest_length_scale: 1.0,
             },
@@ -131,6 +132,7 @@ impl SceneFile {
             colliders: Vec::new(),
             collision: None,
             self_collision: None,
+            bending: None,
         }
     }
 }

@@ -33,6 +33,18 @@ pub struct SceneFile {
     pub collision: Option<CollisionSection>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub self_collision: Option<SelfCollisionSection>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bending: Option<BendingSection>,
+}
+
+/// Bending springs: one between the far vertices of every two triangles that share an edge.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BendingSection {
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// Each bending spring's stiffness, N/m (times the material's stiffness maps).
+    pub stiffness: f64,
 }
 
 /// Approximate self-collision by binning (see `hooke_core::selfcollide`).
@@ -225,6 +237,14 @@ pub struct MaterialSection {
     /// values, so a seam can be stiffer than the panel around it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stiffness_property: Option<String>,
+    /// Boxes whose vertices' stiffness factor is multiplied by the box's `factor` (with the
+    /// property's, if both are given): a spring's `D` is multiplied by the mean of its ends'.
+    #[serde(
+        default,
+        rename = "stiffness_region",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub stiffness_regions: Vec<StiffnessRegion>,
     /// Damping constant `c`, kg/s.
     #[serde(default)]
     pub damping: f64,
@@ -246,6 +266,16 @@ pub enum PinSelector {
     TopCorners,
     /// Every vertex whose y is the largest (within a millionth of the mesh size).
     TopEdge,
+}
+
+/// An axis-aligned box of the material with its own stiffness factor.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StiffnessRegion {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    /// Multiplies the stiffness factor of every vertex inside (boundary included).
+    pub factor: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -348,3 +348,84 @@ fn a_missing_or_bad_vertex_property_names_the_field() {
         "{message}"
     );
 }
+
+#[test]
+fn bending_adds_a_spring_across_every_interior_edge() {
+    let plain = build(CLOTH).expect("builds");
+    let text = format!("{CLOTH}\n[bending]\nstiffness = 20.0\n");
+    let bent = build(&text).expect("builds");
+    let interior = plain
+        .mesh
+        .edges()
+        .iter()
+        .filter(|e| e.triangle_count == 2)
+        .count();
+    assert_eq!(bent.model.bending_springs, interior);
+    assert_eq!(
+        bent.model.spring_count(),
+        plain.model.spring_count() + interior
+    );
+    let first = plain.model.spring_count();
+    assert!(!bent.model.is_bending(first - 1) && bent.model.is_bending(first));
+    assert!(bent.model.stiffnesses[first..].iter().all(|k| *k == 20.0));
+    // More springs per vertex: a smaller stable time step.
+    assert!(bent.max_stable_dt < plain.max_stable_dt);
+    let off = format!("{CLOTH}\n[bending]\nenabled = false\nstiffness = 20.0\n");
+    assert_eq!(build(&off).expect("builds").model, plain.model);
+    assert_eq!(
+        build(&text.replace("stiffness = 20.0", "stiffness = 0"))
+            .unwrap_err()
+            .to_string(),
+        "test.toml: bending.stiffness: must be a positive number, found 0"
+    );
+}
+
+#[test]
+fn a_stiffness_region_scales_the_springs_of_its_vertices() {
+    // The grid spans -0.5..0.5 in x and z; the region holds the row at z = -0.5.
+    let region =
+        "[[material.stiffness_region]]\nmin = [-1, -1, -0.6]\nmax = [1, 1, -0.45]\nfactor = 3.0\n";
+    let scene = build(&format!("{CLOTH}\n{region}")).expect("builds");
+    let model = &scene.model;
+    let inside = |v: u32| scene.mesh.positions[v as usize].z < -0.45;
+    for (s, [a, b]) in model.spring_ends.iter().enumerate() {
+        let expected = 200.0
+            * match (inside(*a), inside(*b)) {
+                (true, true) => 3.0,
+                (false, false) => 1.0,
+                _ => 2.0,
+            };
+        assert!(
+            (model.stiffnesses[s] - expected).abs() < 1e-12,
+            "spring {s}"
+        );
+    }
+    assert_eq!(
+        build(&format!("{CLOTH}\n{}", region.replace("3.0", "-2")))
+            .unwrap_err()
+            .to_string(),
+        "test.toml: material.stiffness_region[0].factor: must be a positive number, found -2"
+    );
+    assert_eq!(
+        build(&format!(
+            "{CLOTH}\n{}",
+            region.replace("-0.6]", "4]").replace("-0.45]", "5]")
+        ))
+        .unwrap_err()
+        .to_string(),
+        "test.toml: material.stiffness_region[0]: contains no vertex"
+    );
+}
+
+#[test]
+fn every_key_of_the_scene_format_page_parses() {
+    let page = include_str!("../../../../scenes/README.md");
+    let keys = page
+        .split("## Every key")
+        .nth(1)
+        .and_then(|rest| rest.split("```toml\n").nth(1))
+        .and_then(|block| block.split("```").next())
+        .expect("the page's key listing");
+    let file = SceneFile::parse(keys, "scenes/README.md").unwrap_or_else(|e| panic!("{e}"));
+    assert!(file.bending.is_some() && !file.material.stiffness_regions.is_empty());
+}

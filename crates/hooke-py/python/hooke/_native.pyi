@@ -66,6 +66,7 @@ class Simulation:
         thickness: float = 0.0,
         colliders: Sequence[dict[str, Any]] | None = None,
         self_collision: dict[str, Any] | None = None,
+        bending: dict[str, Any] | None = None,
         uvs: npt.ArrayLike | None = None,
         backend: Backend = "cpu",
         method: Method | None = None,
@@ -83,6 +84,9 @@ class Simulation:
     def vertex_count(self) -> int: ...
     @property
     def spring_count(self) -> int: ...
+    @property
+    def bending_spring_count(self) -> int:
+        """Of spring_count, the bending springs: the last ones in springs()."""
     @property
     def steps_taken(self) -> int: ...
     @property
@@ -124,6 +128,10 @@ class Simulation:
         allow_unstable: bool = False,
     ) -> None: ...
     def set_self_collision(self, settings: dict[str, Any] | None) -> None: ...
+    def pin(self, vertex: int, at: Vec3 | None = None) -> None:
+        """Pins vertex where it is, or at `at` (m, at rest), until unpin; carries the run on."""
+    def unpin(self, vertex: int) -> None:
+        """Lets a pinned vertex (a scene pin too) move again, from rest where it is."""
     def energy(self) -> dict[str, float]: ...
     def max_strain(self) -> tuple[float, int]: ...
     def pin_reactions(

@@ -1,0 +1,311 @@
+//! Cloth features on every solver, against the float64 reference: bending springs.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::DVec3;
+use hooke::{Simulation, SolverChoice};
+use hooke_core::State;
+use hooke_core::diagnostics::relative_l2;
+use hooke_core::scene::{Scene, SceneFile};
+use hooke_cpu::{CpuOptions, Method};
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod, test_context};
+
+/// Every float32 solver: CPU gather and scatter, and every GPU method when there is a GPU but
+/// blend-rgba8, which sums forces in 8-bit fixed point (the paper's precision finding) and
+/// loses these light scenes altogether (`hooke-gpu`'s tests hold it to its own bar).
+fn float32_choices(gpu: bool) -> Vec<SolverChoice> {
+    let cpu = |method| {
+        SolverChoice::Cpu(CpuOptions {
+            method,
+            ..Default::default()
+        })
+    };
+    let mut choices = vec![cpu(Method::Gather), cpu(Method::Scatter)];
+    if gpu {
+        choices.extend(
+            GpuMethod::all()
+                .into_iter()
+                .filter(|m| *m != GpuMethod::Scatter(Accumulation::BlendRgba8))
+                .map(SolverChoice::Gpu),
+        );
+    }
+    choices
+}
+
+fn build(text: &str) -> Scene {
+    SceneFile::parse(text, "test.toml")
+        .and_then(|file| file.build(Path::new("test.toml"), false))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A strip of tissue (1 g) 0.6 m long and 0.1 m wide along x, clamped by its first two
+/// columns of vertices, hanging under gravity; with bending springs when `bending` is given
+/// (N/m). Distance-2 springs resist a bend only to third order in its angle, so even stiff
+/// ones hold the strip up a little: how much is what the reference says.
+fn cantilever(bending: Option<f64>) -> Scene {
+    let bending = bending.map_or(String::new(), |k| format!("[bending]\nstiffness = {k}\n"));
+    build(&format!(
+        r#"
+[mesh]
+generator = "grid"
+resolution = [10, 3]
+size = [0.6, 0.1]
+
+[material]
+mass = {{ total = 0.001 }}
+stiffness = 400.0
+damping = 0.0002
+
+[pins]
+boxes = [{{ min = [-1, -1, -1], max = [-0.23, 1, 1] }}]
+
+{bending}"#
+    ))
+}
+
+/// How far the strip's free end hangs below its clamp, m.
+fn sag(state: &State) -> f64 {
+    let tip = state
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min);
+    -tip
+}
+
+/// The state after `seconds` of `scene` on `choice`, from `start` or from rest.
+fn run(
+    scene: &Scene,
+    choice: SolverChoice,
+    context: &Option<Arc<GpuContext>>,
+    seconds: f64,
+    start: Option<&State>,
+) -> State {
+    let mut simulation = Simulation::from_scene(scene, choice, context.clone()).expect("solver");
+    if let Some(start) = start {
+        simulation.set_state(start);
+    }
+    simulation
+        .step((seconds / scene.material.dt).round() as u32)
+        .expect("stable");
+    simulation.state().expect("state")
+}
+
+#[test]
+fn bending_springs_hold_a_cantilever_up_as_the_reference_does() {
+    let context = test_context();
+    let (limp, stiff) = (cantilever(None), cantilever(Some(400.0)));
+    assert!(stiff.model.bending_springs > 0);
+    let seconds = 1.0;
+    let reference = |scene| run(scene, SolverChoice::Reference, &context, seconds, None);
+    let (limp_sag, stiff_state) = (sag(&reference(&limp)), reference(&stiff));
+    let stiff_sag = sag(&stiff_state);
+    eprintln!(
+        "reference sag: {limp_sag:.4} m without bending, {stiff_sag:.4} m with (dt {})",
+        stiff.material.dt
+    );
+    // Without bending the strip folds down at its clamp and hangs: it sags by its free
+    // length, 0.567 m. Bending springs hold it 5 cm higher.
+    assert!(limp_sag > 0.45, "{limp_sag}");
+    assert!(stiff_sag < limp_sag - 0.04, "{stiff_sag} vs {limp_sag}");
+    for choice in float32_choices(context.is_some()) {
+        let state = run(&stiff, choice, &context, seconds, None);
+        let (error, sagged) = (
+            relative_l2(&state.positions, &stiff_state.positions),
+            sag(&state),
+        );
+        // A solver that left the bending springs out would sag by the limp strip's amount.
+        assert!(
+            (sagged - stiff_sag).abs() < 0.05 * (limp_sag - stiff_sag),
+            "{}: sag {sagged} against the reference's {stiff_sag}",
+            choice.name()
+        );
+        assert!(error < 1e-2, "{}: relative L2 error {error}", choice.name());
+    }
+}
+
+/// A free square sheet, 0.5 m wide, in the x-z plane at rest, without gravity.
+fn free_sheet(bending: bool) -> Scene {
+    let bending = if bending {
+        "[bending]\nstiffness = 400.0\n"
+    } else {
+        ""
+    };
+    build(&format!(
+        r#"
+[mesh]
+generator = "grid"
+resolution = [7, 7]
+size = [0.5, 0.5]
+
+[material]
+mass = {{ total = 0.05 }}
+stiffness = 400.0
+damping = 0.02
+
+[simulation]
+gravity = [0, 0, 0]
+
+{bending}"#
+    ))
+}
+
+/// The free sheet folded at right angles along its middle column: its half with x > 0 turned
+/// up about the z axis, a rigid turn that stretches no edge spring.
+fn folded(scene: &Scene) -> State {
+    let positions = scene
+        .model
+        .initial_positions
+        .iter()
+        .map(|p| {
+            if p.x > 1e-9 {
+                DVec3::new(0.0, p.x, p.z)
+            } else {
+                *p
+            }
+        })
+        .collect();
+    State::at_rest(positions)
+}
+
+/// The angle between the sheet's halves, degrees: 90 folded at right angles, 180 flat.
+/// `rest` gives each vertex's side: its x at rest.
+fn opening(rest: &[DVec3], state: &State) -> f64 {
+    let mean_of = |x: f64| {
+        let column: Vec<DVec3> = (0..rest.len())
+            .filter(|&v| (rest[v].x - x).abs() < 1e-9)
+            .map(|v| state.positions[v])
+            .collect();
+        column.iter().sum::<DVec3>() / column.len() as f64
+    };
+    let hinge = mean_of(0.0);
+    (mean_of(-0.25) - hinge)
+        .angle_between(mean_of(0.25) - hinge)
+        .to_degrees()
+}
+
+#[test]
+fn a_folded_sheet_unfolds_with_bending_springs_and_stays_folded_without() {
+    let context = test_context();
+    let seconds = 0.4;
+    let (limp, stiff) = (free_sheet(false), free_sheet(true));
+    let (start, rest) = (folded(&stiff), &stiff.model.initial_positions);
+    let reference = run(
+        &stiff,
+        SolverChoice::Reference,
+        &context,
+        seconds,
+        Some(&start),
+    );
+    let opened = opening(rest, &reference);
+    eprintln!(
+        "reference: opened from 90 to {opened:.1} degrees in {seconds} s (dt {})",
+        stiff.material.dt
+    );
+    assert!(opened > 160.0, "{opened}");
+    for choice in std::iter::once(SolverChoice::Reference).chain(float32_choices(context.is_some()))
+    {
+        let kept = opening(rest, &run(&limp, choice, &context, seconds, Some(&start)));
+        assert!(
+            (kept - 90.0).abs() < 1.0,
+            "{}: without bending {kept}",
+            choice.name()
+        );
+        let state = run(&stiff, choice, &context, seconds, Some(&start));
+        let error = relative_l2(&state.positions, &reference.positions);
+        assert!(
+            (opening(rest, &state) - opened).abs() < 1.0 && error < 2e-2,
+            "{}: opened to {} (error {error})",
+            choice.name(),
+            opening(rest, &state)
+        );
+    }
+}
+
+#[test]
+fn a_running_simulation_takes_other_bending_stiffnesses_in_place() {
+    let (stiff, limp) = (cantilever(Some(400.0)), cantilever(None));
+    let cpu = SolverChoice::Cpu(CpuOptions::default());
+    for (choice, bar) in [(SolverChoice::Reference, 1e-12), (cpu, 1e-5)] {
+        let mut live = Simulation::from_scene(&stiff, choice, None).expect("solver");
+        live.step(500).expect("stable");
+        let snapshot = live.snapshot().expect("snapshot");
+        live.set_model(stiff.model.with_bending_scale(0.0))
+            .expect("same vertices");
+        assert_eq!(live.steps_taken(), 500, "{}", choice.name());
+        live.step(500).expect("stable");
+        // The same as the strip without bending springs, continued from the same state.
+        let mut rebuilt =
+            Simulation::new(&limp.model, &stiff.material, choice, None).expect("solver");
+        rebuilt.restore(&snapshot).expect("restore");
+        rebuilt.step(500).expect("stable");
+        let error = relative_l2(
+            &live.state().expect("a").positions,
+            &rebuilt.state().expect("b").positions,
+        );
+        assert!(error < bar, "{}: {error}", choice.name());
+        // And not the same as keeping them.
+        let mut kept = Simulation::from_scene(&stiff, choice, None).expect("solver");
+        kept.restore(&snapshot).expect("restore");
+        kept.step(500).expect("stable");
+        let kept_error = relative_l2(
+            &live.state().expect("a").positions,
+            &kept.state().expect("c").positions,
+        );
+        assert!(kept_error > 100.0 * bar.max(1e-5), "{kept_error}");
+    }
+    let mut live = Simulation::from_scene(&stiff, cpu, None).expect("solver");
+    let other = free_sheet(true).model;
+    assert_eq!(
+        live.set_model(other).unwrap_err().to_string(),
+        "the new model has 49 vertices, the running one 30"
+    );
+}
+
+#[test]
+fn a_vertex_pinned_while_running_stays_where_it_was_put_until_unpinned() {
+    let context = test_context();
+    let strip = cantilever(None);
+    // The free end's middle vertex, held up level with the clamp.
+    let tip = (0..strip.model.vertex_count())
+        .max_by(|a, b| {
+            let (p, q) = (
+                strip.model.initial_positions[*a],
+                strip.model.initial_positions[*b],
+            );
+            (p.x - p.z.abs()).total_cmp(&(q.x - q.z.abs()))
+        })
+        .expect("vertices") as u32;
+    let at = strip.model.initial_positions[tip as usize] + DVec3::new(-0.1, 0.05, 0.0);
+    for choice in std::iter::once(SolverChoice::Reference).chain(float32_choices(context.is_some()))
+    {
+        let mut simulation =
+            Simulation::from_scene(&strip, choice, context.clone()).expect("solver");
+        simulation.step(300).expect("stable");
+        simulation.pin(tip, Some(at)).expect("pin");
+        simulation.step(2000).expect("stable");
+        let state = simulation.state().expect("state");
+        let held = state.positions[tip as usize];
+        assert!(
+            held.distance(at) < 1e-6,
+            "{}: pinned at {at}, found at {held}",
+            choice.name()
+        );
+        // Held up at both ends, the strip no longer hangs by its length.
+        assert!(sag(&state) < 0.3, "{}: sag {}", choice.name(), sag(&state));
+        simulation.unpin(tip).expect("unpin");
+        simulation.step(300).expect("stable");
+        let fallen = simulation.state().expect("state").positions[tip as usize];
+        assert!(
+            fallen.distance(at) > 0.02,
+            "{}: {fallen} after unpinning",
+            choice.name()
+        );
+    }
+    let mut simulation = Simulation::from_scene(&strip, SolverChoice::Reference, None).expect("ok");
+    assert_eq!(
+        simulation.pin(30, None).unwrap_err().to_string(),
+        "pinned vertex 30 does not exist (mesh has 30 vertices)"
+    );
+}
