@@ -229,6 +229,17 @@ fn info_reports_valences_stability_and_memory() {
     let json = hooke(&["info", path_str(&scene), "--format", "json"]);
     let info: serde_json::Value = serde_json::from_slice(&json.stdout).expect("json");
     assert_eq!(info["bending_springs"], 341);
+
+    // A handle is listed with what moves it.
+    let handle = format!(
+        "{SMALL_CLOTH}\n[[handle]]\nvertices = [5, 6]\npath = [[0, 0, 0, 0], [1, 0, 0.1, 0]]\n"
+    );
+    let scene = write(dir.path(), "handle.toml", &handle);
+    let table = text(&hooke(&["info", path_str(&scene)]).stdout);
+    assert!(
+        table.contains("handle 0        2 vertices; keyframed path, 2 keyframes"),
+        "{table}"
+    );
 }
 
 #[test]

@@ -7,6 +7,7 @@ mod control;
 pub mod diagnostics;
 pub mod forces;
 pub mod frames;
+pub mod handles;
 pub mod input_file;
 mod material;
 pub mod mesh;

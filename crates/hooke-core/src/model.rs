@@ -6,6 +6,7 @@
 use glam::DVec3;
 
 use crate::collide::Collider;
+use crate::handles::Handle;
 use crate::mesh::Mesh;
 use crate::selfcollide::SelfCollision;
 
@@ -114,6 +115,8 @@ pub struct Model {
     pub adjacency: Adjacency,
     /// Colliders and self-collision: fixed while stepping.
     pub collision: Collision,
+    /// Pinned vertices moved by a path or a collider (their vertices are also `pinned`).
+    pub handles: Vec<Handle>,
 }
 
 /// What the cloth collides with, fixed while stepping (see [`crate::collide`] and
@@ -229,6 +232,7 @@ impl Model {
             pinned,
             adjacency,
             collision: Collision::default(),
+            handles: Vec::new(),
         })
     }
 

@@ -12,6 +12,7 @@ use crate::collide::{
 };
 use crate::diagnostics::spring_force_on_a;
 use crate::forces::add_external_forces;
+use crate::handles::place_handles;
 use crate::selfcollide::{self, SelfCollision};
 use crate::solver::{PhaseTimes, Snapshot, TimingSource};
 use crate::{Control, Material, Model, SimError, Solver, State};
@@ -98,6 +99,15 @@ impl ReferenceSolver {
                 collider,
             });
         }
+        let positions = &mut state.positions;
+        place_handles(
+            &model.handles,
+            &model.initial_positions,
+            t,
+            &self.colliders,
+            &model.collision.colliders,
+            |v, p| positions[v as usize] = p,
+        );
         if let Some(config) = &self.self_collision {
             resolve_self_collisions(model, state, config);
         }

@@ -2,7 +2,7 @@
 //! balls, and self-collision (`hooke_core::selfcollide`).
 
 use glam::{DVec3, Vec3};
-use hooke_core::{collide, selfcollide};
+use hooke_core::{collide, handles, selfcollide};
 use rayon::prelude::*;
 
 use crate::CpuSolver;
@@ -34,6 +34,30 @@ impl CpuSolver {
             self.delta
                 .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
         }
+    }
+
+    /// Places the handles' vertices where their paths or colliders have taken them at the end
+    /// of this step (see `hooke_core::handles`); after `collide`, which moves the balls.
+    pub(crate) fn move_handles(&mut self) {
+        if self.model.handles.is_empty() {
+            return;
+        }
+        let t = (self.steps_taken + 1) as f64 * self.material.dt;
+        let internal = &self.numbering.internal;
+        let (next, delta, current) = (&mut self.next, &mut self.delta, &self.current);
+        handles::place_handles(
+            &self.model.handles,
+            &self.model.initial_positions,
+            t,
+            &self.colliders,
+            &self.model.collision.colliders,
+            |v, p| {
+                let k = internal[v as usize] as usize;
+                let p = p.as_vec3();
+                next.set(k, p.to_array());
+                delta.set(k, (p - Vec3::from_array(current.get(k))).to_array());
+            },
+        );
     }
 
     /// Moves vertices that ended inside a collider out of it (see `hooke_core::collide`), in

@@ -300,6 +300,7 @@ impl CpuSolver {
         };
         let start = Instant::now();
         let bad_ball = self.collide();
+        self.move_handles();
         self.self_collide();
         if let Some(times) = times {
             times.collision = start.elapsed();

@@ -28,6 +28,7 @@ use crate::kernels::collide::Collide;
 use crate::kernels::external::External;
 use crate::kernels::force_gather::ForceGather;
 use crate::kernels::force_springs::ForceSprings;
+use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
 use crate::kernels::tick::Tick;
@@ -68,6 +69,7 @@ pub struct GpuSolver {
     integrate: Integrate,
     collide: Option<Collide>,
     balls: Option<Balls>,
+    handles: Option<Handles>,
     self_collide: Option<SelfCollidePass>,
     tick: Tick,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
@@ -175,6 +177,7 @@ impl GpuSolver {
             Some(collide) => Balls::new(ctx, &gpu_model, &state, collide)?,
             None => None,
         };
+        let handles = Handles::new(ctx, &gpu_model, &state, collide.as_ref())?;
         let self_collide = match &model.collision.self_collision {
             Some(config) => Some(SelfCollidePass::new(ctx, &gpu_model, &state, config)?),
             None => None,
@@ -205,6 +208,7 @@ impl GpuSolver {
             integrate,
             collide,
             balls,
+            handles,
             self_collide,
             tick,
             timestamps,
@@ -258,7 +262,8 @@ impl GpuSolver {
             per_step: 2 * vec4s(n) + scratch + self.self_collide.as_ref().map_or(0, |p| p.bytes()),
             control: self.external.bytes()
                 + self.model.triangle_bytes
-                + self.collide.as_ref().map_or(0, |c| c.bytes()),
+                + self.collide.as_ref().map_or(0, |c| c.bytes())
+                + self.handles.as_ref().map_or(0, |h| h.bytes()),
         }
     }
 
@@ -334,6 +339,11 @@ impl GpuSolver {
             let balls = self.balls.as_ref();
             sink.pass(Phase::Collision, &mut |e, t| {
                 collide.encode(e, current, balls, t);
+            })?;
+        }
+        if let Some(handles) = &self.handles {
+            sink.pass(Phase::Collision, &mut |e, t| {
+                handles.kernel.encode(e, current, t);
             })?;
         }
         if let Some(pass) = &self.self_collide {

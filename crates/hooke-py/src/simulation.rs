@@ -119,16 +119,17 @@ impl Simulation {
     /// (checked by the same code, with the same messages). `stiffness` (N/m) is a number or
     /// one per spring (in `springs(triangles)` order); give exactly one of `mass_total` (kg),
     /// `mass_per_vertex` (kg, a number or one per vertex) or `area_density` (kg/m^2).
-    /// `colliders`, `wind`, `self_collision` and `bending` are dicts (a list of them for
-    /// colliders) with the keys of the scene file's `[[collider]]`, `[wind]`,
-    /// `[self_collision]` and `[bending]`. `uvs`, an
+    /// `colliders`, `wind`, `self_collision`, `bending` and `handles` are dicts (a list of them
+    /// for colliders and handles) with the keys of the scene file's `[[collider]]`, `[wind]`,
+    /// `[self_collision]`, `[bending]` and `[[handle]]`. `uvs`, an
     /// `(N, 2)` array of texture coordinates per vertex, goes into OBJ and USD frames.
     #[staticmethod]
     #[pyo3(signature = (
         vertices, triangles, *, stiffness, mass_total = None, mass_per_vertex = None,
         area_density = None, stiffness_model = "uniform", damping = 0.0, pins = None,
         select = None, dt = None, gravity = [0.0, -9.81, 0.0], wind = None, thickness = 0.0,
-        colliders = None, self_collision = None, bending = None, uvs = None, backend = "cpu",
+        colliders = None, self_collision = None, bending = None, handles = None, uvs = None,
+        backend = "cpu",
         method = None,
         accumulation = None, threads = None, allow_unstable = false
     ))]
@@ -151,6 +152,7 @@ impl Simulation {
         colliders: Option<&Bound<'_, PyAny>>,
         self_collision: Option<&Bound<'_, PyAny>>,
         bending: Option<&Bound<'_, PyAny>>,
+        handles: Option<&Bound<'_, PyAny>>,
         uvs: Option<&Bound<'_, PyAny>>,
         backend: &str,
         method: Option<&str>,
@@ -242,6 +244,7 @@ impl Simulation {
             ("collider", colliders),
             ("self_collision", self_collision),
             ("bending", bending),
+            ("handle", handles),
         ] {
             if let Some(value) = value {
                 table.insert(key.into(), convert::to_toml(value, key)?);

@@ -267,6 +267,37 @@ def test_a_vertex_pinned_while_running_stays_there_until_unpinned() -> None:
         sim.pin(64)
 
 
+def test_handles_carry_their_vertices_along_their_paths() -> None:
+    vertices, triangles = sheet(8)
+    sim = hooke.Simulation.from_arrays(
+        vertices,
+        triangles,
+        stiffness=50.0,
+        mass_total=0.1,
+        dt=1e-3,
+        handles=[
+            {"vertices": [0, 7], "path": [[0, 0, 0, 0], [0.2, 0, 0.3, 0]]},
+            {"vertices": [56, 63], "path": [[0, 0, 0, 0], [0.2, 0, 0.3, 0]], "repeat": True},
+        ],
+    )
+    assert {0, 7, 56, 63} <= set(sim.pins())
+    sim.step(100)  # t = 0.1 s: halfway along both paths
+    np.testing.assert_allclose(
+        sim.positions()[[0, 7, 56, 63]], vertices[[0, 7, 56, 63]] + (0, 0.15, 0), atol=1e-6
+    )
+    sim.step(150)  # t = 0.25 s: the first handle holds at its end, the second started over
+    np.testing.assert_allclose(sim.positions()[0], vertices[0] + (0, 0.3, 0), atol=1e-6)
+    np.testing.assert_allclose(sim.positions()[56], vertices[56] + (0, 0.075, 0), atol=1e-6)
+    with pytest.raises(hooke.InputError, match=r"handle\[0\]\.collider: collider 2 does not exist"):
+        hooke.Simulation.from_arrays(
+            vertices,
+            triangles,
+            stiffness=50.0,
+            mass_total=0.1,
+            handles=[{"vertices": [0], "collider": 2}],
+        )
+
+
 # ---- live control ---------------------------------------------------------------------------
 
 

@@ -309,3 +309,139 @@ fn a_vertex_pinned_while_running_stays_where_it_was_put_until_unpinned() {
         "pinned vertex 30 does not exist (mesh has 30 vertices)"
     );
 }
+
+/// A 0.4 m curtain hanging from two handles at its top corners, which move 10 cm apart each
+/// over half a second and then hold.
+fn curtain_on_handles() -> Scene {
+    let handle = |side: f64| {
+        format!(
+            "[[handle]]\nboxes = [{{ min = [{lo}, 1.19, -1], max = [{hi}, 1.21, 1] }}]\npath = [[0, 0, 0, 0], [0.5, {dx}, 0, 0]]\n",
+            lo = side * 0.2 - 0.01,
+            hi = side * 0.2 + 0.01,
+            dx = side * 0.1,
+        )
+    };
+    build(&format!(
+        r#"
+[mesh]
+generator = "grid"
+resolution = [9, 9]
+size = [0.4, 0.4]
+plane = "xy"
+center = [0, 1, 0]
+
+[material]
+mass = {{ total = 0.05 }}
+stiffness = 200.0
+damping = 0.005
+
+{}
+{}"#,
+        handle(-1.0),
+        handle(1.0)
+    ))
+}
+
+#[test]
+fn a_curtain_hung_from_handles_moved_apart_is_stretched_as_the_reference_says() {
+    let context = test_context();
+    let scene = curtain_on_handles();
+    let corners: Vec<u32> = scene.model.handles.iter().map(|h| h.vertices[0]).collect();
+    assert_eq!(corners.len(), 2);
+    let seconds = 1.0;
+    let reference = run(&scene, SolverChoice::Reference, &context, seconds, None);
+    let stretch = |state: &State| {
+        let springs = &scene.model;
+        (0..springs.spring_count())
+            .map(|s| {
+                let [a, b] = springs.spring_ends[s];
+                let l = state.positions[a as usize].distance(state.positions[b as usize]);
+                l / springs.rest_lengths[s] - 1.0
+            })
+            .fold(0.0, f64::max)
+    };
+    let expected = stretch(&reference);
+    eprintln!("reference: largest strain {expected:.4} with the handles 0.6 m apart");
+    // The handles pull the top edge from 0.4 to 0.6 m: its springs stretch.
+    assert!(expected > 0.1, "{expected}");
+    for choice in std::iter::once(SolverChoice::Reference).chain(float32_choices(context.is_some()))
+    {
+        let state = run(&scene, choice, &context, seconds, None);
+        for (&v, dx) in corners.iter().zip([-0.1, 0.1]) {
+            let start = scene.model.initial_positions[v as usize];
+            let held = state.positions[v as usize];
+            assert!(
+                held.distance(start + DVec3::new(dx, 0.0, 0.0)) < 1e-6,
+                "{}: handle vertex {v} at {held}, from {start}",
+                choice.name()
+            );
+        }
+        let error = relative_l2(&state.positions, &reference.positions);
+        // Handles left where they started would leave the strain near zero.
+        assert!(
+            (stretch(&state) - expected).abs() < 0.02 * expected && error < 1e-3,
+            "{}: strain {} (error {error})",
+            choice.name(),
+            stretch(&state)
+        );
+    }
+}
+
+#[test]
+fn a_vertex_attached_to_a_ball_stays_on_it() {
+    let context = test_context();
+    // A sheet whose middle vertex is attached to a dynamic ball just below it; the ball falls
+    // to the ground and rolls to rest, carrying the sheet's middle with it.
+    let scene = build(
+        r#"
+[mesh]
+generator = "grid"
+resolution = [9, 9]
+size = [0.4, 0.4]
+center = [0, 1.62, 0]
+
+[material]
+mass = { total = 0.02 }
+stiffness = 100.0
+damping = 0.002
+
+[[collider]]
+kind = "sphere"
+center = [0, 1.5, 0]
+radius = 0.1
+mass = 0.5
+velocity = [0.3, 0, 0]
+
+[[collider]]
+kind = "plane"
+point = [0, 0, 0]
+normal = [0, 1, 0]
+
+[[handle]]
+boxes = [{ min = [-0.01, 1.6, -0.01], max = [0.01, 1.7, 0.01] }]
+collider = 0
+"#,
+    );
+    let middle = scene.model.handles[0].vertices[0];
+    let offset = scene.model.initial_positions[middle as usize] - DVec3::new(0.0, 1.5, 0.0);
+    for choice in std::iter::once(SolverChoice::Reference).chain(float32_choices(context.is_some()))
+    {
+        let mut simulation =
+            Simulation::from_scene(&scene, choice, context.clone()).expect("solver");
+        for _ in 0..4 {
+            simulation.step(500).expect("stable");
+            let center = match simulation.colliders().expect("colliders")[0].shape {
+                hooke_core::collide::Shape::Sphere { center, .. } => center,
+                _ => unreachable!("a sphere"),
+            };
+            let on = simulation.state().expect("state").positions[middle as usize] - center;
+            assert!(
+                (on - offset).length() < 1e-5,
+                "{} at t = {:.2} s: the vertex is at {on} from the ball, attached at {offset}",
+                choice.name(),
+                simulation.time()
+            );
+            assert!(center.y < 1.5 || simulation.time() < 0.1);
+        }
+    }
+}

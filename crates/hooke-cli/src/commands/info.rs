@@ -1,5 +1,6 @@
 //! `hooke info`: what a scene is made of, its stable time step and what each method stores.
 
+use hooke_core::handles::{Handle, HandleMotion};
 use std::path::PathBuf;
 
 use clap::Args;
@@ -87,6 +88,21 @@ struct Info {
     colliders: Vec<String>,
     /// The self-collision setting, if on.
     self_collision: Option<String>,
+    /// One line per handle: its vertices and what moves it.
+    handles: Vec<String>,
+}
+
+/// A handle in a few words.
+fn describe_handle(handle: &Handle) -> String {
+    let motion = match &handle.motion {
+        HandleMotion::Path(path) => format!(
+            "keyframed path, {} keyframes{}",
+            path.keyframes().len(),
+            if path.repeat { ", repeating" } else { "" }
+        ),
+        HandleMotion::Collider(c) => format!("follows collider {c}"),
+    };
+    format!("{} vertices; {motion}", handle.vertices.len())
 }
 
 /// A collider in a few words.
@@ -177,6 +193,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         gpu_adapter,
         gpu_memory,
         colliders: scene.model.collision.colliders.iter().map(describe_collider).collect(),
+        handles: scene.model.handles.iter().map(describe_handle).collect(),
         self_collision: scene.model.collision.self_collision.map(|c| {
             format!(
                 "distance {} m, cells {} m, K = {} grids (shifted k/K of a cell along (1,1,1)), window {}",
@@ -238,6 +255,9 @@ fn print_info(info: &Info) {
     }
     if let Some(setting) = &info.self_collision {
         println!("self-collision  {setting}");
+    }
+    for (k, handle) in info.handles.iter().enumerate() {
+        println!("handle {k}        {handle}");
     }
     let mut memory = Table::new();
     memory.set_header(vec![

@@ -5,9 +5,12 @@ use std::path::Path;
 
 use glam::DVec3;
 
+use super::inputs::keyframe_path;
 use super::{
-    MeshGenerator, Scene, SceneError, SceneFile, StiffnessKind, TimeStep, require, select_vertices,
+    MeshGenerator, PinSection, Scene, SceneError, SceneFile, StiffnessKind, TimeStep, require,
+    select_vertices,
 };
+use crate::handles::{Handle, HandleMotion};
 use crate::mesh::{self, Mesh, MeshWarning};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
 use crate::{MassModel, Material, Model, ModelOptions, StiffnessModel};
@@ -140,6 +143,7 @@ impl SceneFile {
 
         let (control, collision) = self.build_inputs(&mesh, &invalid)?;
         model.collision = collision;
+        self.resolve_handles(&mesh, &mut model, &invalid)?;
         require(self.simulation.frame_every > 0, || {
             invalid("simulation.frame_every", "must be at least 1".into())
         })?;
@@ -167,6 +171,38 @@ impl SceneFile {
         scene.set_time_step(self.simulation.dt, path, allow_unstable)?;
         Ok(scene)
     }
+}
+
+/// The vertices a `[pins]`-like section names (indices, selectors and boxes, added up), sorted;
+/// `prefix` names the section in errors.
+fn select_pinned(
+    mesh: &Mesh,
+    pins: &PinSection,
+    prefix: &str,
+    invalid: &dyn Fn(&str, String) -> SceneError,
+) -> Result<Vec<u32>, SceneError> {
+    let count = mesh.vertex_count();
+    let mut pinned = Vec::new();
+    for &v in &pins.vertices {
+        require((v as usize) < count, || {
+            invalid(
+                &format!("{prefix}.vertices"),
+                format!("vertex {v} does not exist (mesh has {count} vertices)"),
+            )
+        })?;
+        pinned.push(v);
+    }
+    for selector in &pins.select {
+        pinned.extend(select_vertices(mesh, *selector));
+    }
+    for (k, b) in pins.boxes.iter().enumerate() {
+        pinned.extend(vertices_in_box(mesh, b.min, b.max, &|message| {
+            invalid(&format!("{prefix}.boxes[{k}]"), message)
+        })?);
+    }
+    pinned.sort_unstable();
+    pinned.dedup();
+    Ok(pinned)
 }
 
 /// The vertices of `mesh` inside the box from `min` to `max` (boundary included); a box that
@@ -378,28 +414,56 @@ impl SceneFile {
         mesh: &Mesh,
         invalid: &dyn Fn(&str, String) -> SceneError,
     ) -> Result<Vec<u32>, SceneError> {
-        let count = mesh.vertex_count();
-        let mut pinned = Vec::new();
-        for &v in &self.pins.vertices {
-            require((v as usize) < count, || {
+        select_pinned(mesh, &self.pins, "pins", invalid)
+    }
+
+    /// The scene's `[[handle]]`s, their vertices pinned in `model` (whose colliders are set).
+    fn resolve_handles(
+        &self,
+        mesh: &Mesh,
+        model: &mut Model,
+        invalid: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<(), SceneError> {
+        for (k, section) in self.handles.iter().enumerate() {
+            let field = format!("handle[{k}]");
+            let vertices = select_pinned(mesh, &section.pins(), &field, invalid)?;
+            require(!vertices.is_empty(), || {
                 invalid(
-                    "pins.vertices",
-                    format!("vertex {v} does not exist (mesh has {count} vertices)"),
+                    &field,
+                    "holds no vertex: give vertices, select or boxes".into(),
                 )
             })?;
-            pinned.push(v);
+            let colliders = model.collision.colliders.len();
+            let motion = match (&section.path, section.collider) {
+                (Some(keys), None) => HandleMotion::Path(Box::new(keyframe_path(
+                    keys,
+                    section.repeat,
+                    &format!("{field}.path"),
+                    invalid,
+                )?)),
+                (None, Some(c)) => {
+                    require(c < colliders, || {
+                        invalid(
+                            &format!("{field}.collider"),
+                            format!("collider {c} does not exist (the scene has {colliders})"),
+                        )
+                    })?;
+                    HandleMotion::Collider(c)
+                }
+                _ => {
+                    return Err(invalid(
+                        &field,
+                        "give exactly one of path (keyframes [t, dx, dy, dz]) or collider (an index)"
+                            .into(),
+                    ));
+                }
+            };
+            for &v in &vertices {
+                model.pinned[v as usize] = true;
+            }
+            model.handles.push(Handle { vertices, motion });
         }
-        for selector in &self.pins.select {
-            pinned.extend(select_vertices(mesh, *selector));
-        }
-        for (k, b) in self.pins.boxes.iter().enumerate() {
-            pinned.extend(vertices_in_box(mesh, b.min, b.max, &|message| {
-                invalid(&format!("pins.boxes[{k}]"), message)
-            })?);
-        }
-        pinned.sort_unstable();
-        pinned.dedup();
-        Ok(pinned)
+        Ok(())
     }
 
     /// Per-vertex stiffness factors from `material.stiffness_property` and the

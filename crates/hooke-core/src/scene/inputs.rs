@@ -173,22 +173,7 @@ impl SceneFile {
                             )
                         })?;
                     }
-                    require(keys.iter().flatten().all(|x| x.is_finite()), || {
-                        invalid(&field("path"), "keyframes must be finite".into())
-                    })?;
-                    let keys: Vec<(f64, DVec3)> = keys
-                        .iter()
-                        .map(|[t, x, y, z]| (*t, DVec3::new(*x, *y, *z)))
-                        .collect();
-                    Some(KeyframePath::new(&keys, c.repeat).ok_or_else(|| {
-                        invalid(
-                            &field("path"),
-                            format!(
-                                "needs 2 to {MAX_KEYFRAMES} keyframes [t, x, y, z] with increasing t, found {}",
-                                keys.len()
-                            ),
-                        )
-                    })?)
+                    Some(keyframe_path(keys, c.repeat, &field("path"), invalid)?)
                 }
             };
             let velocity = match c.velocity {
@@ -323,4 +308,29 @@ impl SelfCollisionSection {
             window: section.window,
         }))
     }
+}
+
+/// The keyframed path `keys` (`[t, x, y, z]`), checked; `field` names it in errors.
+pub(super) fn keyframe_path(
+    keys: &[[f64; 4]],
+    repeat: bool,
+    field: &str,
+    invalid: &dyn Fn(&str, String) -> SceneError,
+) -> Result<KeyframePath, SceneError> {
+    require(keys.iter().flatten().all(|x| x.is_finite()), || {
+        invalid(field, "keyframes must be finite".into())
+    })?;
+    let keys: Vec<(f64, DVec3)> = keys
+        .iter()
+        .map(|[t, x, y, z]| (*t, DVec3::new(*x, *y, *z)))
+        .collect();
+    KeyframePath::new(&keys, repeat).ok_or_else(|| {
+        invalid(
+            field,
+            format!(
+                "needs 2 to {MAX_KEYFRAMES} keyframes [t, x, y, z] with increasing t, found {}",
+                keys.len()
+            ),
+        )
+    })
 }

@@ -133,6 +133,7 @@ impl SceneFile {
             collision: None,
             self_collision: None,
             bending: None,
+            handles: Vec::new(),
         }
     }
 }

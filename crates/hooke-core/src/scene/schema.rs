@@ -35,6 +35,42 @@ pub struct SceneFile {
     pub self_collision: Option<SelfCollisionSection>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bending: Option<BendingSection>,
+    #[serde(default, rename = "handle", skip_serializing_if = "Vec::is_empty")]
+    pub handles: Vec<HandleSection>,
+}
+
+/// Pinned vertices moved together by a path or a collider (see `hooke_core::handles`). Which
+/// vertices: the keys of [`PinSection`], repeated here because serde cannot flatten a section
+/// into one that refuses unknown keys.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandleSection {
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub select: Vec<PinSelector>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub vertices: Vec<u32>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub boxes: Vec<PinBox>,
+    /// Keyframes `[t, dx, dy, dz]`: the handle's displacement from where its vertices start.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<Vec<[f64; 4]>>,
+    /// Start the path over after its last keyframe.
+    #[serde(default)]
+    pub repeat: bool,
+    /// Instead of a path: follow this collider (its index among the `[[collider]]`s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collider: Option<usize>,
+}
+
+impl HandleSection {
+    /// The vertex selection, as a `[pins]` section.
+    pub fn pins(&self) -> PinSection {
+        PinSection {
+            select: self.select.clone(),
+            vertices: self.vertices.clone(),
+            boxes: self.boxes.clone(),
+        }
+    }
 }
 
 /// Bending springs: one between the far vertices of every two triangles that share an edge.

@@ -428,4 +428,41 @@ fn every_key_of_the_scene_format_page_parses() {
         .expect("the page's key listing");
     let file = SceneFile::parse(keys, "scenes/README.md").unwrap_or_else(|e| panic!("{e}"));
     assert!(file.bending.is_some() && !file.material.stiffness_regions.is_empty());
+    assert_eq!(file.handles.len(), 1);
+}
+
+#[test]
+fn handles_pin_their_vertices_and_name_their_errors() {
+    let handle = "[[handle]]\nselect = [\"corners\"]\npath = [[0, 0, 0, 0], [1, 0.2, 0, 0]]\n";
+    let scene = build(&format!("{CLOTH}\n{handle}")).expect("builds");
+    let handles = &scene.model.handles;
+    assert_eq!(handles.len(), 1);
+    assert_eq!(handles[0].vertices, [0, 7, 56, 63]);
+    assert!(
+        handles[0]
+            .vertices
+            .iter()
+            .all(|v| scene.model.pinned[*v as usize])
+    );
+    let error = |text: String| build(&format!("{CLOTH}\n{text}")).unwrap_err().to_string();
+    assert_eq!(
+        error(handle.replace("path = [[0, 0, 0, 0], [1, 0.2, 0, 0]]", "collider = 0")),
+        "test.toml: handle[0].collider: collider 0 does not exist (the scene has 0)"
+    );
+    assert_eq!(
+        error(format!("{handle}collider = 0\n")),
+        "test.toml: handle[0]: give exactly one of path (keyframes [t, dx, dy, dz]) or collider (an index)"
+    );
+    assert_eq!(
+        error(handle.replace("[1, 0.2, 0, 0]", "[0, 0.2, 0, 0]")),
+        "test.toml: handle[0].path: needs 2 to 8 keyframes [t, x, y, z] with increasing t, found 2"
+    );
+    assert_eq!(
+        error(handle.replace("select = [\"corners\"]", "vertices = [64]")),
+        "test.toml: handle[0].vertices: vertex 64 does not exist (mesh has 64 vertices)"
+    );
+    assert_eq!(
+        error(handle.replace("select = [\"corners\"]\n", "")),
+        "test.toml: handle[0]: holds no vertex: give vertices, select or boxes"
+    );
 }

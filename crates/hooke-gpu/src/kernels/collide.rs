@@ -249,7 +249,7 @@ pub fn record_of(collider: &Collider) -> GpuCollider {
 }
 
 /// `MAX_KEYFRAMES` slots `(t, x, y, z)` per collider for paths.wgsl.
-fn keyframe_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
+pub(crate) fn keyframe_entries(colliders: &[Collider]) -> Vec<[f32; 4]> {
     colliders
         .iter()
         .flat_map(|c| {

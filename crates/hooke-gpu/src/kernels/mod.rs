@@ -13,6 +13,7 @@ pub mod collide;
 pub mod external;
 pub mod force_gather;
 pub mod force_springs;
+pub mod handles;
 pub mod integrate;
 pub mod radix_sort;
 pub mod self_collide;
@@ -72,6 +73,7 @@ pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
 pub const COLLIDE: &str = kernel_source!(with paths "collide.wgsl");
 pub const BALLS: &str = kernel_source!(with paths "balls.wgsl");
+pub const HANDLES: &str = kernel_source!(with paths "handles.wgsl");
 pub const RADIX_SORT: &str = kernel_source!("radix_sort.wgsl");
 pub const SELF_COLLIDE: &str = kernel_source!("self_collide.wgsl");
 
@@ -91,6 +93,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("tick", TICK),
     ("collide", COLLIDE),
     ("balls", BALLS),
+    ("handles", HANDLES),
     ("radix_sort", RADIX_SORT),
     ("self_collide", SELF_COLLIDE),
 ];

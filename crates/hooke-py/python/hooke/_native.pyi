@@ -67,6 +67,7 @@ class Simulation:
         colliders: Sequence[dict[str, Any]] | None = None,
         self_collision: dict[str, Any] | None = None,
         bending: dict[str, Any] | None = None,
+        handles: Sequence[dict[str, Any]] | None = None,
         uvs: npt.ArrayLike | None = None,
         backend: Backend = "cpu",
         method: Method | None = None,
