@@ -87,6 +87,8 @@ pub struct LiveSimulation {
     pub bending_scale: f64,
     /// The bending scale of the running model.
     running_bending_scale: f64,
+    /// Counts the changes to which vertices are pinned, for whatever draws the pins.
+    pins_changed: u64,
     pub damping: f64,
     /// dt as a fraction of the stability bound.
     pub dt_fraction: f64,
@@ -161,6 +163,7 @@ impl LiveSimulation {
             stiffness_scale: 1.0,
             bending_scale: 1.0,
             running_bending_scale: 1.0,
+            pins_changed: 0,
             steps_per_frame: 10,
             scene,
             engine,
@@ -312,19 +315,27 @@ impl LiveSimulation {
         let Some((vertex, target)) = grab else {
             return;
         };
-        if let Err(error) = self.engine.pin(vertex, Some(target.as_dvec3())) {
-            self.message = Some(error.to_string());
+        match self.engine.pin(vertex, Some(target.as_dvec3())) {
+            Ok(()) => self.pins_changed += 1,
+            Err(error) => self.message = Some(error.to_string()),
         }
+    }
+
+    /// How many times the set of pinned vertices has changed since the start: a renderer
+    /// redraws its pin markers when this moves.
+    pub fn pins_changed(&self) -> u64 {
+        self.pins_changed
     }
 
     /// Lets go of every vertex pinned since the start (the scene's own pins stay).
     pub fn unpin_added(&mut self) {
         let mut model = self.model().clone();
         model.pinned.clone_from(&self.scene.model.pinned);
-        if model.pinned != self.model().pinned
-            && let Err(error) = self.engine.set_model(model)
-        {
-            self.message = Some(error.to_string());
+        if model.pinned != self.model().pinned {
+            match self.engine.set_model(model) {
+                Ok(()) => self.pins_changed += 1,
+                Err(error) => self.message = Some(error.to_string()),
+            }
         }
     }
 
@@ -366,6 +377,7 @@ impl LiveSimulation {
             Ok(engine) => {
                 self.engine = engine;
                 self.running_bending_scale = 1.0;
+                self.pins_changed += 1;
                 self.message = None;
                 self.apply();
             }

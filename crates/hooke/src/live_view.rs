@@ -15,6 +15,8 @@ pub struct LiveView {
     pub camera: Camera,
     pub options: RenderOptions,
     pub pointer: Pointer,
+    /// The [`LiveSimulation::pins_changed`] count the pin markers show.
+    pins_drawn: u64,
 }
 
 impl LiveView {
@@ -36,6 +38,7 @@ impl LiveView {
             pointer: Pointer::new(size),
             renderer,
             picker,
+            pins_drawn: simulation.pins_changed(),
         })
     }
 
@@ -67,6 +70,10 @@ impl LiveView {
             if picking {
                 self.pointer.pick_recorded();
             }
+        }
+        if simulation.pins_changed() != self.pins_drawn {
+            self.renderer.set_pins(context, &simulation.model().pinned);
+            self.pins_drawn = simulation.pins_changed();
         }
         self.options.wind = simulation.wind().map(|w| w.velocity.as_vec3());
         self.renderer

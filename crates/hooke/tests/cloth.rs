@@ -9,7 +9,7 @@ use hooke_core::State;
 use hooke_core::diagnostics::relative_l2;
 use hooke_core::scene::{Scene, SceneFile};
 use hooke_cpu::{CpuOptions, Method};
-use hooke_gpu::{Accumulation, GpuContext, GpuMethod, test_context};
+use hooke_gpu::{Accumulation, GpuContext, GpuMethod, test_context, wgpu};
 
 /// Every float32 solver: CPU gather and scatter, and every GPU method when there is a GPU but
 /// blend-rgba8, which sums forces in 8-bit fixed point (the paper's precision finding) and
@@ -443,5 +443,67 @@ collider = 0
             );
             assert!(center.y < 1.5 || simulation.time() < 0.1);
         }
+    }
+}
+
+#[test]
+fn the_viewer_pins_a_grabbed_vertex_and_scales_bending_while_running() {
+    use hooke::live::{Choice, LiveSimulation};
+    use hooke::live_view::LiveView;
+    let Some(context) = test_context() else {
+        return;
+    };
+    let scene = cantilever(Some(400.0));
+    let first_bending = scene.model.spring_count() - scene.model.bending_springs;
+    for choice in [Choice::Cpu(Method::Gather), Choice::Gpu(GpuMethod::Gather)] {
+        let mut live = LiveSimulation::new(Arc::clone(&context), scene.clone(), choice)
+            .expect("live simulation");
+        let format = wgpu::TextureFormat::Rgba8Unorm;
+        let mut view = LiveView::new(&context, &live, format, [64, 48]).expect("view");
+        let target = context.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("test target"),
+            size: wgpu::Extent3d {
+                width: 64,
+                height: 48,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        });
+        let target = target.create_view(&Default::default());
+        let frame = |live: &mut LiveSimulation, view: &mut LiveView| {
+            let mut encoder = context.device.create_command_encoder(&Default::default());
+            live.encode_frame(&mut encoder);
+            view.encode(&context, &mut encoder, live, &target)
+                .expect("frame");
+            context.queue.submit([encoder.finish()]);
+            live.after_submit();
+        };
+        frame(&mut live, &mut view);
+        // What P does while the tip is held 5 cm above where it started.
+        let tip = 29;
+        let held = scene.model.initial_positions[tip as usize].as_vec3() + glam::Vec3::Y * 0.05;
+        live.pin_grabbed(Some((tip, held)));
+        assert!(live.model().pinned[tip as usize] && live.added_pins() == 1);
+        assert_eq!(live.pins_changed(), 1);
+        // The bending slider to 0 rebuilds the solver with the pins as they are.
+        live.bending_scale = 0.0;
+        live.apply();
+        assert!(
+            live.model().stiffnesses[first_bending..]
+                .iter()
+                .all(|k| *k == 0.0)
+        );
+        assert_eq!(live.added_pins(), 1);
+        frame(&mut live, &mut view);
+        live.unpin_added();
+        assert_eq!((live.added_pins(), live.pins_changed()), (0, 2));
+        frame(&mut live, &mut view);
+        context.take_error().expect("no GPU validation error");
+        assert!(live.steps_taken() > 0, "{}", choice.label());
     }
 }

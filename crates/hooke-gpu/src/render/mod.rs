@@ -273,6 +273,17 @@ impl SceneRenderer {
         self.bounds
     }
 
+    /// Marks the vertices `pinned` says (the model's pins as they are now: a viewer pins and
+    /// unpins while running). One small buffer is replaced; nothing else is created.
+    pub fn set_pins(&mut self, context: &GpuContext, pinned: &[bool]) {
+        let list: Vec<u32> = (0..pinned.len() as u32)
+            .filter(|&v| pinned[v as usize])
+            .collect();
+        let none = wgpu::BufferUsages::empty();
+        self.pinned = storage(context, "pinned vertices", &list, none);
+        self.pin_count = list.len() as u32;
+    }
+
     /// The spheres drawn, one `vec4` (centre, radius) each in collider order, `COPY_DST`: a
     /// solver may copy its balls' current places in (`GpuSolver::copy_spheres`) after
     /// [`SceneRenderer::set_colliders`] and before drawing.
