@@ -262,17 +262,17 @@ impl Model {
     /// This model with every bending spring's stiffness times `scale` (0 turns them off; the
     /// edge springs keep theirs).
     pub fn with_bending_scale(&self, scale: f64) -> Model {
-        let mut scaled = self.clone();
-        let first = self.spring_count() - self.bending_springs;
-        for k in &mut scaled.stiffnesses[first..] {
-            *k *= scale;
-        }
-        scaled
+        self.with_stiffnesses_scaled_from(self.first_bending_spring(), scale)
+    }
+
+    /// The index of the first bending spring (the spring count when there are none).
+    fn first_bending_spring(&self) -> usize {
+        self.spring_count() - self.bending_springs
     }
 
     /// True if spring `s` is a bending spring rather than a mesh edge.
     pub fn is_bending(&self, spring: usize) -> bool {
-        spring >= self.spring_count() - self.bending_springs
+        spring >= self.first_bending_spring()
     }
 
     /// The stiffness of spring `s` under a material's stiffness scale, N/m.
@@ -282,8 +282,13 @@ impl Model {
 
     /// This model with every stiffness times `scale` (what a solver steps under a material).
     pub fn with_stiffness_scale(&self, scale: f64) -> Model {
+        self.with_stiffnesses_scaled_from(0, scale)
+    }
+
+    /// This model with the stiffness of every spring from index `first` on times `scale`.
+    fn with_stiffnesses_scaled_from(&self, first: usize, scale: f64) -> Model {
         let mut scaled = self.clone();
-        for k in &mut scaled.stiffnesses {
+        for k in &mut scaled.stiffnesses[first..] {
             *k *= scale;
         }
         scaled

@@ -89,6 +89,9 @@ pub struct LiveSimulation {
     running_bending_scale: f64,
     /// Counts the changes to which vertices are pinned, for whatever draws the pins.
     pins_changed: u64,
+    /// Vertices pinned since the start beyond the scene's own (counted when pins change, not
+    /// on every frame the panel shows it).
+    added_pins: usize,
     pub damping: f64,
     /// dt as a fraction of the stability bound.
     pub dt_fraction: f64,
@@ -164,6 +167,7 @@ impl LiveSimulation {
             bending_scale: 1.0,
             running_bending_scale: 1.0,
             pins_changed: 0,
+            added_pins: 0,
             steps_per_frame: 10,
             scene,
             engine,
@@ -316,9 +320,16 @@ impl LiveSimulation {
             return;
         };
         match self.engine.pin(vertex, Some(target.as_dvec3())) {
-            Ok(()) => self.pins_changed += 1,
+            Ok(()) => self.pins_were_changed(),
             Err(error) => self.message = Some(error.to_string()),
         }
+    }
+
+    /// Notes that the running model's pins changed.
+    fn pins_were_changed(&mut self) {
+        self.pins_changed += 1;
+        let (now, scene) = (&self.model().pinned, &self.scene.model.pinned);
+        self.added_pins = now.iter().zip(scene).filter(|(a, b)| **a && !**b).count();
     }
 
     /// How many times the set of pinned vertices has changed since the start: a renderer
@@ -333,7 +344,7 @@ impl LiveSimulation {
         model.pinned.clone_from(&self.scene.model.pinned);
         if model.pinned != self.model().pinned {
             match self.engine.set_model(model) {
-                Ok(()) => self.pins_changed += 1,
+                Ok(()) => self.pins_were_changed(),
                 Err(error) => self.message = Some(error.to_string()),
             }
         }
@@ -341,8 +352,7 @@ impl LiveSimulation {
 
     /// Vertices pinned since the start, beyond the scene's own.
     pub fn added_pins(&self) -> usize {
-        let (now, scene) = (&self.model().pinned, &self.scene.model.pinned);
-        now.iter().zip(scene).filter(|(a, b)| **a && !**b).count()
+        self.added_pins
     }
 
     /// Moves the running simulation onto another solver (a user action: it reads the state
@@ -377,7 +387,7 @@ impl LiveSimulation {
             Ok(engine) => {
                 self.engine = engine;
                 self.running_bending_scale = 1.0;
-                self.pins_changed += 1;
+                self.pins_were_changed();
                 self.message = None;
                 self.apply();
             }

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use hooke::{Simulation, SolverChoice};
 use hooke_core::scene::SceneFile;
 use hooke_cpu::{CpuOptions, Method};
-use hooke_gpu::{Accumulation, GpuContext, GpuMethod, gpu_required};
+use hooke_gpu::{Accumulation, GpuMethod, test_context};
 use hooke_testkit::shipped_scenes_dir;
 use sha2::{Digest, Sha256};
 
@@ -90,14 +90,7 @@ fn read_record() -> BTreeMap<String, String> {
 
 #[test]
 fn every_shipped_scene_ends_in_its_recorded_state_on_every_solver() {
-    let context = match GpuContext::new() {
-        Ok(context) => Some(context),
-        Err(error) if gpu_required() => panic!("HOOKE_REQUIRE_GPU=1 but no GPU: {error}"),
-        Err(error) => {
-            eprintln!("no GPU ({error}): GPU rows not compared");
-            None
-        }
-    };
+    let context = test_context();
     let gpu_comparable = context.as_ref().is_some_and(|c| {
         c.info.name.contains(RECORDED_ADAPTER) && c.info.backend == RECORDED_BACKEND
     });

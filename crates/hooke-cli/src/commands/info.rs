@@ -1,12 +1,12 @@
 //! `hooke info`: what a scene is made of, its stable time step and what each method stores.
 
-use hooke_core::handles::{Handle, HandleMotion};
 use std::path::PathBuf;
 
 use clap::Args;
 use comfy_table::Table;
 use hooke::{MemoryReport, Simulation, SolverChoice};
-use hooke_core::collide::{Collider, Shape};
+use hooke_core::collide::{Collider, KeyframePath, Shape};
+use hooke_core::handles::{Handle, HandleMotion};
 use hooke_core::stability::stability_limit;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, Method};
@@ -92,14 +92,19 @@ struct Info {
     handles: Vec<String>,
 }
 
+/// A collider's or handle's keyframed path in a few words.
+fn describe_path(path: &KeyframePath) -> String {
+    format!(
+        "keyframed path, {} keyframes{}",
+        path.keyframes().len(),
+        if path.repeat { ", repeating" } else { "" }
+    )
+}
+
 /// A handle in a few words.
 fn describe_handle(handle: &Handle) -> String {
     let motion = match &handle.motion {
-        HandleMotion::Path(path) => format!(
-            "keyframed path, {} keyframes{}",
-            path.keyframes().len(),
-            if path.repeat { ", repeating" } else { "" }
-        ),
+        HandleMotion::Path(path) => describe_path(path),
         HandleMotion::Collider(c) => format!("follows collider {c}"),
     };
     format!("{} vertices; {motion}", handle.vertices.len())
@@ -119,11 +124,7 @@ fn describe_collider(collider: &Collider) -> String {
             "dynamic ball {} kg, force {} N, restitution {}",
             d.mass, d.force, d.restitution
         ),
-        (None, Some(path)) => format!(
-            "keyframed path, {} keyframes{}",
-            path.keyframes().len(),
-            if path.repeat { ", repeating" } else { "" }
-        ),
+        (None, Some(path)) => describe_path(&path),
         (None, None) if collider.velocity != glam::DVec3::ZERO => {
             format!("moving at {} m/s", collider.velocity)
         }

@@ -114,7 +114,7 @@ impl SceneFile {
                 StiffnessModel::InverseRestLength(material.stiffness)
             }
         };
-        let pinned = self.resolve_pins(&mesh, &invalid)?;
+        let pinned = select_pinned(&mesh, &self.pins, "pins", &invalid)?;
         let options = ModelOptions {
             stiffness,
             mass,
@@ -407,14 +407,6 @@ impl SceneFile {
             .validate(&format!("{} (generated mesh)", path.display()))
             .map_err(mesh::MeshLoadError::from)?;
         Ok((mesh, warnings))
-    }
-
-    fn resolve_pins(
-        &self,
-        mesh: &Mesh,
-        invalid: &dyn Fn(&str, String) -> SceneError,
-    ) -> Result<Vec<u32>, SceneError> {
-        select_pinned(mesh, &self.pins, "pins", invalid)
     }
 
     /// The scene's `[[handle]]`s, their vertices pinned in `model` (whose colliders are set).
