@@ -40,18 +40,25 @@ fn run(scene: &Path, steps: &str, output: &Path, extra: &[&str]) {
 #[test]
 fn a_resumed_run_ends_bit_identical_to_the_uninterrupted_one() {
     let dir = tempfile::tempdir().expect("tempdir");
-    // Dynamic balls pushed by the cloth; and kinematic balls on straight and keyframed paths.
-    for name in ["wind-and-balls.toml", "ball-through-curtain.toml"] {
+    // Dynamic balls pushed by the cloth; kinematic balls on straight and keyframed paths; a
+    // sheet stopped while it tears.
+    for (name, before, after) in [
+        ("wind-and-balls.toml", 100, 100),
+        ("ball-through-curtain.toml", 100, 100),
+        ("tearing.toml", 1430, 570),
+    ] {
         let scene = shipped_scene_path(name);
+        let total = (before + after).to_string();
+        let (before, after) = (before.to_string(), after.to_string());
         for method in ["gather", "scatter"] {
             let out = |label: &str| dir.path().join(format!("{name}-{method}-{label}"));
             let (whole, first, second) = (out("whole"), out("first"), out("second"));
-            run(&scene, "200", &whole, &["--method", method]);
-            run(&scene, "100", &first, &["--method", method]);
+            run(&scene, &total, &whole, &["--method", method]);
+            run(&scene, &before, &first, &["--method", method]);
             let saved = first.join("final-state.ply");
             run(
                 &scene,
-                "100",
+                &after,
                 &second,
                 &["--method", method, "--resume", path_str(&saved)],
             );
@@ -60,11 +67,29 @@ fn a_resumed_run_ends_bit_identical_to_the_uninterrupted_one() {
                 let actual = std::fs::read(second.join(file)).expect("resumed run's state");
                 assert!(
                     expected == actual,
-                    "{name} {method}: {file} of 100 + 100 steps differs from 200 steps"
+                    "{name} {method}: {file} of {before} + {after} steps differs from {total} steps"
                 );
             }
             let sidecar = std::fs::read_to_string(second.join("final-state.toml")).expect("toml");
-            assert!(sidecar.contains("steps_taken = 200"), "{sidecar}");
+            assert!(
+                sidecar.contains(&format!("steps_taken = {total}")),
+                "{sidecar}"
+            );
+            if name == "tearing.toml" {
+                // Stopped mid-tear: some springs broken then, more by the end, all counted.
+                let count = |run: &Path| {
+                    let text = std::fs::read_to_string(run.join("summary.json")).expect("summary");
+                    let summary: serde_json::Value = serde_json::from_str(&text).expect("json");
+                    summary["broken_springs"].as_u64().expect("broken_springs")
+                };
+                let (then, end) = (count(&first), count(&second));
+                assert!(
+                    0 < then && then < end && end == count(&whole),
+                    "{then} then, {end} at the end"
+                );
+                let saved = std::fs::read_to_string(first.join("final-state.toml")).expect("toml");
+                assert!(saved.contains("broken_springs = ["), "{saved}");
+            }
         }
     }
 }

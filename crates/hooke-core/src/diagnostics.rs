@@ -46,12 +46,14 @@ pub fn relative_l2(a: &[DVec3], b: &[DVec3]) -> f64 {
     (error / norm).sqrt()
 }
 
-/// Largest relative elongation `(|l| - |l0|) / |l0|` over all springs, and the spring.
+/// Largest relative elongation `(|l| - |l0|) / |l0|` over the springs that exert a force (a
+/// torn spring has zero stiffness: its ends may drift any distance apart), and the spring.
 pub fn max_strain(model: &Model, positions: &[DVec3]) -> (f64, usize) {
     model
         .spring_ends
         .iter()
         .enumerate()
+        .filter(|(s, _)| model.stiffnesses[*s] != 0.0)
         .map(|(s, [a, b])| {
             let length = positions[*a as usize].distance(positions[*b as usize]);
             ((length - model.rest_lengths[s]) / model.rest_lengths[s], s)

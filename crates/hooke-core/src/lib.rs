@@ -18,6 +18,7 @@ pub mod selfcollide;
 mod solver;
 pub mod stability;
 mod state;
+pub mod tearing;
 
 pub use control::{BallPush, Control, Drag, PointForce, Wind};
 pub use material::Material;

@@ -7,8 +7,9 @@ use glam::DVec3;
 
 use crate::collide::Collider;
 use crate::handles::Handle;
-use crate::mesh::Mesh;
+use crate::mesh::{BendingPair, Mesh};
 use crate::selfcollide::SelfCollision;
+use crate::tearing::Tearing;
 
 /// How spring stiffnesses `D_ij` (paper eq. 1) are assigned.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,6 +108,9 @@ pub struct Model {
     /// The last this many springs are bending springs (see [`Model::add_bending_springs`]);
     /// the others join the mesh's edges.
     pub bending_springs: usize,
+    /// Length `bending_springs`: per bending spring, the edge springs of the two triangles it
+    /// joins, the edge it crosses first (a triangle that tears takes its hinges with it).
+    pub bending_hinges: Vec<[u32; 5]>,
     /// Length `n_vertices`: point mass `m_i` (kg).
     pub masses: Vec<f64>,
     /// Length `n_vertices`: whether the vertex is held in place.
@@ -117,6 +121,8 @@ pub struct Model {
     pub collision: Collision,
     /// Pinned vertices moved by a path or a collider (their vertices are also `pinned`).
     pub handles: Vec<Handle>,
+    /// When springs break (see [`crate::tearing`]); never when `None`.
+    pub tearing: Option<Tearing>,
 }
 
 /// What the cloth collides with, fixed while stepping (see [`crate::collide`] and
@@ -145,6 +151,8 @@ pub enum ModelError {
     PinOutOfRange { index: u32, vertex_count: usize },
     #[error("{field} must be positive and finite, found {value}")]
     NotPositive { field: &'static str, value: f64 },
+    #[error("bending spring: the mesh has no edge {ends:?}")]
+    NoSuchEdge { ends: [u32; 2] },
     #[error(
         "vertex {vertex} has zero mass (it belongs to no triangle); use a per-vertex or total mass"
     )]
@@ -228,11 +236,13 @@ impl Model {
             rest_lengths,
             stiffnesses,
             bending_springs: 0,
+            bending_hinges: Vec::new(),
             masses,
             pinned,
             adjacency,
             collision: Collision::default(),
             handles: Vec::new(),
+            tearing: None,
         })
     }
 
@@ -242,32 +252,73 @@ impl Model {
     /// vertices two triangles apart, which resists folding across the edge between them.
     pub fn add_bending_springs(
         &mut self,
-        pairs: &[[u32; 2]],
+        pairs: &[BendingPair],
         stiffness: f64,
         rest_length_scale: f64,
     ) -> Result<(), ModelError> {
         let stiffness = positive("bending.stiffness", stiffness)?;
-        for &[a, b] in pairs {
+        let edges: std::collections::HashMap<[u32; 2], u32> = self
+            .spring_ends
+            .iter()
+            .enumerate()
+            .map(|(s, [a, b])| ([*a.min(b), *a.max(b)], s as u32))
+            .collect();
+        let edge = |p: u32, q: u32| {
+            let ends = [p.min(q), p.max(q)];
+            edges
+                .get(&ends)
+                .copied()
+                .ok_or(ModelError::NoSuchEdge { ends })
+        };
+        for pair in pairs {
+            let ([c, d], [a, b]) = (pair.far, pair.across);
+            let hinge = [
+                edge(a, b)?,
+                edge(a, c)?,
+                edge(b, c)?,
+                edge(a, d)?,
+                edge(b, d)?,
+            ];
             let length =
-                self.initial_positions[a as usize].distance(self.initial_positions[b as usize]);
-            self.spring_ends.push([a, b]);
+                self.initial_positions[c as usize].distance(self.initial_positions[d as usize]);
+            self.spring_ends.push([c, d]);
             self.rest_lengths.push(length * rest_length_scale);
             self.stiffnesses.push(stiffness);
+            self.bending_hinges.push(hinge);
         }
         self.bending_springs += pairs.len();
         self.adjacency = Adjacency::from_springs(self.vertex_count(), &self.spring_ends);
         Ok(())
     }
 
+    /// The edge springs of the two triangles bending spring `spring` joins (the crossed edge
+    /// first); `None` for an edge spring.
+    pub fn bending_hinge(&self, spring: usize) -> Option<&[u32; 5]> {
+        spring
+            .checked_sub(self.first_bending_spring())
+            .map(|k| &self.bending_hinges[k])
+    }
+
+    /// The index of the first bending spring (the spring count when there are none).
+    pub fn first_bending_spring(&self) -> usize {
+        self.spring_count() - self.bending_springs
+    }
+
+    /// This model with the `broken` springs (flags in spring order) exerting no force: zero
+    /// stiffness (their rest lengths stay, so strains stay finite). What solvers that build
+    /// tables from a model, and diagnostics, see once springs have torn.
+    pub fn with_springs_broken(&self, broken: &[bool]) -> Model {
+        let mut torn = self.clone();
+        for (s, _) in broken.iter().enumerate().filter(|(_, b)| **b) {
+            torn.stiffnesses[s] = 0.0;
+        }
+        torn
+    }
+
     /// This model with every bending spring's stiffness times `scale` (0 turns them off; the
     /// edge springs keep theirs).
     pub fn with_bending_scale(&self, scale: f64) -> Model {
         self.with_stiffnesses_scaled_from(self.first_bending_spring(), scale)
-    }
-
-    /// The index of the first bending spring (the spring count when there are none).
-    fn first_bending_spring(&self) -> usize {
-        self.spring_count() - self.bending_springs
     }
 
     /// True if spring `s` is a bending spring rather than a mesh edge.

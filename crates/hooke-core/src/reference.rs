@@ -15,6 +15,7 @@ use crate::forces::add_external_forces;
 use crate::handles::place_handles;
 use crate::selfcollide::{self, SelfCollision};
 use crate::solver::{PhaseTimes, Snapshot, TimingSource};
+use crate::tearing::Tears;
 use crate::{Control, Material, Model, SimError, Solver, State};
 
 #[derive(Debug)]
@@ -27,6 +28,7 @@ pub struct ReferenceSolver {
     forces: Vec<DVec3>,
     /// Colliders as they are now (dynamic balls move; scripted ones are placed by time).
     colliders: Vec<Collider>,
+    tears: Tears,
     steps_taken: u64,
 }
 
@@ -40,6 +42,7 @@ impl ReferenceSolver {
             self_collision: model.collision.self_collision,
             material: *material,
             control: Control::default(),
+            tears: Tears::new(model),
             steps_taken: 0,
         }
     }
@@ -47,8 +50,13 @@ impl ReferenceSolver {
     fn step_once(&mut self) -> Result<(), SimError> {
         let (model, material, state) = (&self.model, &self.material, &mut self.state);
         self.forces.fill(DVec3::ZERO);
+        // Springs are tested in float32, as every solver tests them (see `crate::tearing`).
+        self.tears.test(|v| state.positions[v as usize].as_vec3());
         add_external_forces(model, state, material, &self.control, &mut self.forces);
         for (s, [a, b]) in model.spring_ends.iter().enumerate() {
+            if self.tears.is_broken(s) {
+                continue;
+            }
             let (a, b) = (*a as usize, *b as usize);
             let force = spring_force_on_a(
                 state.positions[a],
@@ -189,7 +197,12 @@ impl Solver for ReferenceSolver {
         ))
     }
 
+    fn broken_springs(&self) -> Result<Vec<u32>, SimError> {
+        Ok(self.tears.list())
+    }
+
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError> {
+        self.tears.restore(&snapshot.broken_springs)?;
         self.state = snapshot.state.clone();
         restore_balls(&mut self.colliders, &snapshot.colliders);
         self.steps_taken = snapshot.steps_taken;

@@ -32,6 +32,8 @@ impl PhaseTimes {
 /// The simulation left the range where its numbers mean anything.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SimError {
+    #[error("spring {spring} is listed as broken, but the model has {spring_count} springs")]
+    NoSuchSpring { spring: u32, spring_count: usize },
     #[error(
         "step {step}: vertex {vertex} reached a non-finite position; the time step is too large for the stiffness, or a force is NaN"
     )]
@@ -72,6 +74,8 @@ pub struct Snapshot {
     /// Every collider where it is now (dynamic balls with their velocity and spin).
     pub colliders: Vec<Collider>,
     pub steps_taken: u64,
+    /// The springs torn so far, in order (see [`crate::tearing`]).
+    pub broken_springs: Vec<u32>,
 }
 
 /// Advances a mass-spring system. A solver owns its state, wherever that lives (CPU or GPU
@@ -114,16 +118,20 @@ pub trait Solver: Send {
     /// where the simulation put them (a read-back for solvers whose state is remote).
     fn colliders(&self) -> Result<Vec<Collider>, SimError>;
 
+    /// The springs torn so far, in order (a read-back for solvers whose state is remote).
+    fn broken_springs(&self) -> Result<Vec<u32>, SimError>;
+
     /// The state, the colliders and the step counter, to continue from later.
     fn snapshot(&self) -> Result<Snapshot, SimError> {
         Ok(Snapshot {
             state: self.read_state()?,
             colliders: self.colliders()?,
             steps_taken: self.steps_taken(),
+            broken_springs: self.broken_springs()?,
         })
     }
 
     /// Continues from `snapshot`: its state, its balls' places and motion, its step counter
-    /// (which places scripted colliders).
+    /// (which places scripted colliders), its torn springs.
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError>;
 }

@@ -22,10 +22,11 @@ mod tables;
 
 use std::time::Instant;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 pub use hooke_core::PhaseTimes;
 use hooke_core::collide::{self, Collider};
 use hooke_core::selfcollide::SelfCollision;
+use hooke_core::tearing::Tears;
 use hooke_core::{
     Control, Material, Model, SimError, Snapshot, Solver, State, TimingSource, selfcollide,
 };
@@ -149,6 +150,8 @@ pub struct CpuSolver {
     colliders: Vec<Collider>,
     /// Scratch of `collide`: per slice and collider, the momentum the cloth took.
     slice_pushes: Vec<DVec3>,
+    /// Broken springs (their stiffness is zero in `topology`) and the tests that break more.
+    tears: Tears,
     steps_taken: u64,
 }
 
@@ -192,6 +195,7 @@ impl CpuSolver {
             inverse_masses: selfcollide::inverse_masses(model),
             colliders: model.collision.colliders.clone(),
             slice_pushes: Vec::new(),
+            tears: Tears::new(model),
             model: model.clone(),
             steps_taken: 0,
         };
@@ -202,6 +206,11 @@ impl CpuSolver {
 
     pub fn options(&self) -> CpuOptions {
         self.options
+    }
+
+    /// Per spring, true once broken (see [`hooke_core::tearing`]).
+    pub fn broken_flags(&self) -> &[bool] {
+        self.tears.flags()
     }
 
     pub fn threads(&self) -> usize {
@@ -290,13 +299,21 @@ impl CpuSolver {
     /// which keeps each vertex's force in registers. Both give bit-identical states.
     fn step_once(&mut self, mut times: Option<&mut PhaseTimes>) -> Result<(), SimError> {
         let start = Instant::now();
+        self.tear();
+        let tearing = start.elapsed();
+        let start = Instant::now();
         let has_extra = self.compute_external();
         if let Some(times) = times.as_deref_mut() {
             times.external = start.elapsed();
         }
         let all_finite = match times.as_deref_mut() {
             None => self.forces_and_integration_fused(has_extra),
-            Some(times) => self.forces_then_integration(has_extra, times),
+            Some(times) => {
+                let all_finite = self.forces_then_integration(has_extra, times);
+                // Testing springs for tearing is part of computing their forces.
+                times.force_calculation += tearing;
+                all_finite
+            }
         };
         let start = Instant::now();
         let bad_ball = self.collide();
@@ -307,6 +324,37 @@ impl CpuSolver {
         }
         self.finish_step(all_finite)?;
         self.check_balls(bad_ball)
+    }
+
+    /// Breaks the springs the current positions stretch past their limits (in parallel, listed
+    /// in spring order), and rebuilds the force tables without them when any broke.
+    fn tear(&mut self) {
+        let Some(rule) = self.tears.rule() else {
+            return;
+        };
+        let (broken, current, internal) =
+            (self.tears.flags(), &self.current, &self.numbering.internal);
+        let position = |v: u32| Vec3::from(current.get(internal[v as usize] as usize));
+        let newly: Vec<u32> = (0..rule.spring_count() as u32)
+            .into_par_iter()
+            .filter(|&s| !broken[s as usize] && rule.breaks(s as usize, position))
+            .collect();
+        if !newly.is_empty() {
+            self.tears.mark(&newly);
+            self.build_tables();
+        }
+    }
+
+    /// The force tables of the model under the material's stiffness scale, torn springs at zero
+    /// stiffness.
+    fn build_tables(&mut self) {
+        let scale = self.material.stiffness_scale;
+        self.topology = if self.tears.count() == 0 {
+            build_topology(&self.model, &self.numbering, self.options.method, scale)
+        } else {
+            let torn = self.model.with_springs_broken(self.tears.flags());
+            build_topology(&torn, &self.numbering, self.options.method, scale)
+        };
     }
 
     /// Forces and integration in one pass per vertex chunk; true if every result is finite.
@@ -546,15 +594,11 @@ impl Solver for CpuSolver {
     }
 
     fn set_material(&mut self, material: &Material) -> Result<(), SimError> {
-        if material.stiffness_scale != self.material.stiffness_scale {
-            self.topology = build_topology(
-                &self.model,
-                &self.numbering,
-                self.options.method,
-                material.stiffness_scale,
-            );
-        }
+        let rebuild = material.stiffness_scale != self.material.stiffness_scale;
         self.material = *material;
+        if rebuild {
+            self.build_tables();
+        }
         self.set_integrator();
         // Wind reads a triangle's velocity as its deltas over dt.
         self.set_external_forces();
@@ -636,7 +680,15 @@ impl Solver for CpuSolver {
         ))
     }
 
+    fn broken_springs(&self) -> Result<Vec<u32>, SimError> {
+        Ok(self.tears.list())
+    }
+
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError> {
+        if self.tears.list() != snapshot.broken_springs {
+            self.tears.restore(&snapshot.broken_springs)?;
+            self.build_tables();
+        }
         self.write_state(&snapshot.state);
         collide::restore_balls(&mut self.colliders, &snapshot.colliders);
         self.steps_taken = snapshot.steps_taken;

@@ -69,6 +69,18 @@ pub struct GatherEntry {
     pub stiffness: f32,
 }
 
+/// One spring's tear test (`TearTest` in `tear.wgsl`): the ends and squared length at which it
+/// breaks, and the words of its stiffness in the force records (`second`: `u32::MAX` if none).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTearTest {
+    pub a: u32,
+    pub b: u32,
+    pub limit_squared: f32,
+    pub first: u32,
+    pub second: u32,
+}
+
 /// What the kernels report back (`Status` in WGSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
@@ -187,6 +199,9 @@ mod tests {
         assert_eq!(offsets, [0, 4, 8, 12]);
         let (size, _) = wgsl_layout("GatherEntry");
         assert_eq!(size as usize, size_of::<GatherEntry>());
+        let (size, offsets) = layout_in(crate::kernels::TEAR, "TearTest");
+        assert_eq!(size as usize, size_of::<GpuTearTest>());
+        assert_eq!(offsets, [0, 4, 8, 12, 16]);
         let (size, _) = wgsl_layout("Status");
         assert_eq!(size as usize, size_of::<GpuStatus>());
         let (size, offsets) = layout_in(crate::kernels::RADIX_SORT, "SortUniforms");

@@ -81,6 +81,8 @@ impl GpuModel {
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let none = wgpu::BufferUsages::empty();
+        // Tearing's restore rewrites the records.
+        let copy_dst = wgpu::BufferUsages::COPY_DST;
         let (topology, topology_bytes) = match method {
             GpuMethod::Gather => {
                 let order = valence_sorted_order(model);
@@ -95,7 +97,7 @@ impl GpuModel {
                 let topology = GpuTopology::Gather {
                     order: storage(context, "gather order", &order, none),
                     offsets: storage(context, "gather offsets", &offsets, none),
-                    entries: storage(context, "gather entries", &entries, none),
+                    entries: storage(context, "gather entries", &entries, copy_dst),
                 };
                 (topology, bytes)
             }
@@ -103,7 +105,7 @@ impl GpuModel {
                 let springs = spring_records(model);
                 gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
                 let bytes = bytes_of(&springs);
-                let springs = storage(context, "springs", &springs, none);
+                let springs = storage(context, "springs", &springs, copy_dst);
                 (GpuTopology::Scatter { springs }, bytes)
             }
         };
@@ -218,6 +220,56 @@ impl GpuModel {
             }
             _ => 2f64.powi(range.log2().round() as i32) as f32,
         };
+    }
+
+    /// The buffer of the force records (gather entries or spring records).
+    pub fn force_records(&self) -> &wgpu::Buffer {
+        match &self.topology {
+            GpuTopology::Gather { entries, .. } => entries,
+            GpuTopology::Scatter { springs } => springs,
+        }
+    }
+
+    /// Per spring, the index of each 32-bit word holding its stiffness in
+    /// [`GpuModel::force_records`]: gather has one per end, scatter one (the other `u32::MAX`).
+    pub fn stiffness_words(&self) -> Vec<[u32; 2]> {
+        let model = &self.model;
+        match &self.topology {
+            GpuTopology::Gather { .. } => {
+                const WORDS: usize = std::mem::size_of::<GatherEntry>() / 4;
+                let stiffness = std::mem::offset_of!(GatherEntry, stiffness) / 4;
+                let mut words = vec![[u32::MAX; 2]; model.spring_count()];
+                let entries = valence_sorted_order(model)
+                    .into_iter()
+                    .flat_map(|v| model.adjacency.range(v as usize));
+                for (slot, k) in entries.enumerate() {
+                    let spring = &mut words[model.adjacency.springs[k] as usize];
+                    let end = usize::from(spring[0] != u32::MAX);
+                    spring[end] = (slot * WORDS + stiffness) as u32;
+                }
+                words
+            }
+            GpuTopology::Scatter { .. } => {
+                const WORDS: usize = std::mem::size_of::<GpuSpring>() / 4;
+                let stiffness = std::mem::offset_of!(GpuSpring, stiffness) / 4;
+                (0..model.spring_count())
+                    .map(|s| [(s * WORDS + stiffness) as u32, u32::MAX])
+                    .collect()
+            }
+        }
+    }
+
+    /// Rewrites the force records with the `broken` springs (flags in spring order) at zero
+    /// stiffness and every other spring whole: what restoring a snapshot's tears needs.
+    pub fn write_force_records(&self, context: &GpuContext, broken: &[bool]) {
+        let torn = self.model.with_springs_broken(broken);
+        let bytes: Vec<u8> = match &self.topology {
+            GpuTopology::Gather { .. } => {
+                bytemuck::cast_slice(&gather_entries(&torn, &valence_sorted_order(&torn))).to_vec()
+            }
+            GpuTopology::Scatter { .. } => bytemuck::cast_slice(&spring_records(&torn)).to_vec(),
+        };
+        context.queue.write_buffer(self.force_records(), 0, &bytes);
     }
 
     /// The springs buffer of the scatter method.

@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use hooke_core::collide::{self, Collider};
 use hooke_core::selfcollide::SelfCollision;
+use hooke_core::tearing::{self, Tearing};
 use hooke_core::{
     Control, Material, Model, PhaseTimes, SimError, Snapshot, Solver, State, TimingSource,
 };
@@ -31,6 +32,7 @@ use crate::kernels::force_springs::ForceSprings;
 use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
+use crate::kernels::tear::Tear;
 use crate::kernels::tick::Tick;
 use crate::layout::GpuStatus;
 use crate::methods::{Accumulation, GpuMemory, GpuMethod};
@@ -65,6 +67,8 @@ pub struct GpuSolver {
     /// Per-vertex spring forces (scratch of the force pass or the accumulation).
     forces: wgpu::Buffer,
     external: External,
+    /// Springs breaking (when the model tears, or a restored snapshot has torn springs).
+    tear: Option<Tear>,
     force: Forces,
     integrate: Integrate,
     collide: Option<Collide>,
@@ -183,6 +187,10 @@ impl GpuSolver {
             None => None,
         };
         let tick = Tick::new(ctx, &state)?;
+        let tear = match &model.tearing {
+            Some(tearing) => Some(Tear::new(ctx, &gpu_model, &state, tearing)?),
+            None => None,
+        };
         let timestamps = ctx.has(wgpu::Features::TIMESTAMP_QUERY).then(|| {
             let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass timestamps"),
@@ -204,6 +212,7 @@ impl GpuSolver {
             state,
             forces,
             external,
+            tear,
             force,
             integrate,
             collide,
@@ -238,6 +247,18 @@ impl GpuSolver {
         self.state.current_positions()
     }
 
+    /// The per-spring broken flags (`u32`, 1 once broken) when springs can break: what a
+    /// renderer binds to hide torn triangles.
+    pub fn broken_springs_buffer(&self) -> Option<&wgpu::Buffer> {
+        self.tear.as_ref().map(|t| &t.broken)
+    }
+
+    /// How many springs have broken (a `u32`, then padding to 16 bytes), for callers that read
+    /// it back without waiting.
+    pub fn broken_count_buffer(&self) -> Option<&wgpu::Buffer> {
+        self.tear.as_ref().map(|t| &t.count)
+    }
+
     pub fn memory(&self) -> GpuMemory {
         let n = self.model.model.vertex_count();
         let (topology, scratch) = match &self.force {
@@ -259,7 +280,10 @@ impl GpuSolver {
             positions: self.state.bytes(),
             topology: self.model.topology_bytes + topology,
             // Integration scales and spring-force sums, per-spring forces, accumulators.
-            per_step: 2 * vec4s(n) + scratch + self.self_collide.as_ref().map_or(0, |p| p.bytes()),
+            per_step: 2 * vec4s(n)
+                + scratch
+                + self.self_collide.as_ref().map_or(0, |p| p.bytes())
+                + self.tear.as_ref().map_or(0, |t| t.bytes()),
             control: self.external.bytes()
                 + self.model.triangle_bytes
                 + self.collide.as_ref().map_or(0, |c| c.bytes())
@@ -284,11 +308,14 @@ impl GpuSolver {
         count.0 + self_collision
     }
 
-    /// Hands the passes of one step to `sink`, in order: the control's forces (when it has
-    /// any), the force pass, the accumulation (scatter), integration, collision, the tick. The
+    /// Hands the passes of one step to `sink`, in order: tearing (when the model tears), the
+    /// control's forces (when it has any), the force pass, the accumulation (scatter), integration, collision, the tick. The
     /// only place that lists them.
     fn record_step(&self, sink: &mut dyn PassSink) -> Result<(), GpuError> {
         let current = self.state.current;
+        if let Some(tear) = &self.tear {
+            sink.pass(Phase::Force, &mut |e, t| tear.kernel.encode(e, current, t))?;
+        }
         if self.model.uniforms.has_extra != 0 {
             let external = &self.external;
             if external.wind_on() {
@@ -580,7 +607,28 @@ impl Solver for GpuSolver {
         }
     }
 
+    fn broken_springs(&self) -> Result<Vec<u32>, SimError> {
+        match &self.tear {
+            Some(tear) => tear.read(&self.context).map_err(device),
+            None => Ok(Vec::new()),
+        }
+    }
+
     fn restore(&mut self, snapshot: &Snapshot) -> Result<(), SimError> {
+        let spring_count = self.model.model.spring_count();
+        let broken = tearing::broken_flags(&snapshot.broken_springs, spring_count)?;
+        if self.tear.is_none() && !snapshot.broken_springs.is_empty() {
+            // A model that does not tear keeps a snapshot's tears: nothing more breaks.
+            let never = Tearing {
+                max_stretch: f64::INFINITY,
+            };
+            let tear = Tear::new(&self.context, &self.model, &self.state, &never);
+            self.tear = Some(tear.map_err(device)?);
+        }
+        if let Some(tear) = &self.tear {
+            tear.write(&self.context, &broken);
+            self.model.write_force_records(&self.context, &broken);
+        }
         self.state.write(&self.context, &snapshot.state);
         if let Some(collide) = &self.collide {
             collide.restore_balls(&self.context, &snapshot.colliders);

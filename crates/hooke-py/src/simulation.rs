@@ -16,8 +16,8 @@ use pyo3::types::PyDict;
 use crate::convert::{self, PerItem};
 use crate::errors::{HookeError, OrRaise, input};
 
-/// A saved state of a simulation (positions, previous positions, balls, step counter), to
-/// `restore` later. Opaque; made by `Simulation.snapshot()`.
+/// A saved state of a simulation (positions, previous positions, balls, step counter, torn
+/// springs), to `restore` later. Opaque; made by `Simulation.snapshot()`.
 #[pyclass(module = "hooke._native", name = "Snapshot", frozen)]
 #[derive(Debug)]
 pub struct Snapshot {
@@ -30,6 +30,12 @@ impl Snapshot {
     #[getter]
     fn steps_taken(&self) -> u64 {
         self.inner.steps_taken
+    }
+
+    /// How many springs had torn when the snapshot was taken.
+    #[getter]
+    fn broken_spring_count(&self) -> usize {
+        self.inner.broken_springs.len()
     }
 }
 
@@ -119,16 +125,17 @@ impl Simulation {
     /// (checked by the same code, with the same messages). `stiffness` (N/m) is a number or
     /// one per spring (in `springs(triangles)` order); give exactly one of `mass_total` (kg),
     /// `mass_per_vertex` (kg, a number or one per vertex) or `area_density` (kg/m^2).
-    /// `colliders`, `wind`, `self_collision`, `bending` and `handles` are dicts (a list of them
-    /// for colliders and handles) with the keys of the scene file's `[[collider]]`, `[wind]`,
-    /// `[self_collision]`, `[bending]` and `[[handle]]`. `uvs`, an
+    /// `colliders`, `wind`, `self_collision`, `bending`, `handles` and `tearing` are dicts (a
+    /// list of them for colliders and handles) with the keys of the scene file's `[[collider]]`,
+    /// `[wind]`, `[self_collision]`, `[bending]`, `[[handle]]` and `[tearing]`. `uvs`, an
     /// `(N, 2)` array of texture coordinates per vertex, goes into OBJ and USD frames.
     #[staticmethod]
     #[pyo3(signature = (
         vertices, triangles, *, stiffness, mass_total = None, mass_per_vertex = None,
         area_density = None, stiffness_model = "uniform", damping = 0.0, pins = None,
         select = None, dt = None, gravity = [0.0, -9.81, 0.0], wind = None, thickness = 0.0,
-        colliders = None, self_collision = None, bending = None, handles = None, uvs = None,
+        colliders = None, self_collision = None, bending = None, handles = None, tearing = None,
+        uvs = None,
         backend = "cpu",
         method = None,
         accumulation = None, threads = None, allow_unstable = false
@@ -153,6 +160,7 @@ impl Simulation {
         self_collision: Option<&Bound<'_, PyAny>>,
         bending: Option<&Bound<'_, PyAny>>,
         handles: Option<&Bound<'_, PyAny>>,
+        tearing: Option<&Bound<'_, PyAny>>,
         uvs: Option<&Bound<'_, PyAny>>,
         backend: &str,
         method: Option<&str>,
@@ -245,6 +253,7 @@ impl Simulation {
             ("self_collision", self_collision),
             ("bending", bending),
             ("handle", handles),
+            ("tearing", tearing),
         ] {
             if let Some(value) = value {
                 table.insert(key.into(), convert::to_toml(value, key)?);
@@ -301,6 +310,12 @@ impl Simulation {
     #[getter]
     fn bending_spring_count(&self) -> PyResult<usize> {
         self.with(|s| Ok(s.model().bending_springs))
+    }
+
+    /// The springs torn so far (indices into `springs()`), in order: an `(B,)` array.
+    fn broken_springs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray1<u32>>> {
+        let broken = self.with(|s| s.broken_springs().or_raise())?;
+        Ok(numpy::PyArray1::from_vec(py, broken))
     }
 
     #[getter]
@@ -593,7 +608,7 @@ impl Simulation {
         let energy = self.with(|s| {
             let state = s.state().or_raise()?;
             Ok(hooke_core::diagnostics::energy(
-                s.model(),
+                &*s.torn_model().or_raise()?,
                 &state,
                 s.material(),
             ))
@@ -606,12 +621,12 @@ impl Simulation {
         Ok(dict)
     }
 
-    /// The largest strain `|l| / l0 - 1` of any spring, and that spring's index.
+    /// The largest strain `|l| / l0 - 1` of any spring still whole, and that spring's index.
     fn max_strain(&self) -> PyResult<(f64, usize)> {
         self.with(|s| {
             let state = s.state().or_raise()?;
             Ok(hooke_core::diagnostics::max_strain(
-                s.model(),
+                &*s.torn_model().or_raise()?,
                 &state.positions,
             ))
         })
@@ -626,7 +641,7 @@ impl Simulation {
         let reactions = self.with(|s| {
             let state = s.state().or_raise()?;
             Ok(hooke_core::diagnostics::pin_reactions(
-                s.model(),
+                &*s.torn_model().or_raise()?,
                 &state.positions,
                 s.material(),
             ))

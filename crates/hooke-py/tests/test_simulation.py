@@ -1,5 +1,6 @@
 """The Python package against the CLI, against physics, and against bad input."""
 
+import json
 import threading
 import tracemalloc
 from pathlib import Path
@@ -295,6 +296,32 @@ def test_handles_carry_their_vertices_along_their_paths() -> None:
             stiffness=50.0,
             mass_total=0.1,
             handles=[{"vertices": [0], "collider": 2}],
+        )
+
+
+def test_tearing_breaks_springs_for_good_as_the_cli_does(tmp_path: Path) -> None:
+    scene = SCENES / "tearing.toml"
+    sim = hooke.Simulation.from_scene(scene)
+    sim.step(1430)  # the tear has begun
+    saved = sim.snapshot()
+    sim.step(570)
+    broken = sim.broken_springs()
+    assert 0 < saved.broken_spring_count < len(broken)
+    assert np.all(np.diff(broken) > 0) and broken[-1] < sim.spring_count
+    out = tmp_path / "cli"
+    run_cli("run", str(scene), "--steps", "2000", "--no-frames", "--output", str(out))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["broken_springs"] == len(broken)
+    # Torn springs pull on nothing: once the halves have parted, every spring still whole is
+    # back under the 1.3 limit.
+    assert sim.max_strain()[0] < 0.3
+    # A snapshot keeps the tears it was taken with.
+    sim.restore(saved)
+    assert len(sim.broken_springs()) == saved.broken_spring_count
+    vertices, triangles = sheet(8)
+    with pytest.raises(hooke.InputError, match=r"tearing\.max_stretch: must be a number above 1"):
+        hooke.Simulation.from_arrays(
+            vertices, triangles, stiffness=50.0, mass_total=0.1, tearing={"max_stretch": 0.9}
         )
 
 

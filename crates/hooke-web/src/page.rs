@@ -454,8 +454,9 @@ impl Inner {
     fn copy_positions(&self) -> Result<wgpu::Buffer, String> {
         let source = self
             .simulation
-            .positions()
-            .ok_or("the page's solver has no position buffer")?;
+            .cloth()
+            .ok_or("the page's solver has no position buffer")?
+            .positions;
         let bytes = 16 * self.simulation.model().vertex_count() as u64;
         let staging = hooke_gpu::gpu::copy_to_staging(&self.context, &[(source, bytes)]);
         Ok(staging)

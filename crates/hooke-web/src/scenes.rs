@@ -19,7 +19,7 @@ macro_rules! offered {
 }
 
 /// The paper's Fig. 2, 3 and 4 first, then the other scenes that need no mesh file.
-pub const SCENES: [Offered; 9] = offered![
+pub const SCENES: [Offered; 10] = offered![
     "cloth-pinned.toml",
     "self-collision.toml",
     "wind-and-balls.toml",
@@ -28,6 +28,7 @@ pub const SCENES: [Offered; 9] = offered![
     "cloth-on-bar.toml",
     "ball-through-curtain.toml",
     "curtain-on-handles.toml",
+    "tearing.toml",
     "irregular-pinned.toml",
 ];
 

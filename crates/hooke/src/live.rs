@@ -12,9 +12,10 @@ use glam::{DVec3, Vec3};
 use hooke_core::collide::Collider;
 use hooke_core::scene::Scene;
 use hooke_core::selfcollide::SelfCollision;
+use hooke_core::tearing::Tearing;
 use hooke_core::{BallPush, Control, Drag, Material, Model, PhaseTimes, TimingSource, Wind};
 use hooke_cpu::{CpuOptions, Method};
-use hooke_gpu::render::AsyncReadback;
+use hooke_gpu::render::{AsyncReadback, ClothBuffers};
 use hooke_gpu::wgpu;
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod};
 
@@ -72,6 +73,11 @@ pub fn gpu_methods(context: &GpuContext) -> Vec<GpuMethod> {
         .collect()
 }
 
+/// The scene's tearing threshold (1.5 when it does not tear: the panel shows none then).
+fn scene_max_stretch(scene: &Scene) -> f64 {
+    scene.model.tearing.map_or(1.5, |t| t.max_stretch)
+}
+
 /// Steps between non-blocking status checks of the GPU solver.
 const STATUS_EVERY: u64 = 30;
 
@@ -87,6 +93,10 @@ pub struct LiveSimulation {
     pub bending_scale: f64,
     /// The bending scale of the running model.
     running_bending_scale: f64,
+    /// Springs break past this many times their rest length (used when the scene tears).
+    pub max_stretch: f64,
+    /// The tearing threshold of the running model.
+    running_max_stretch: f64,
     /// Counts the changes to which vertices are pinned, for whatever draws the pins.
     pins_changed: u64,
     /// Vertices pinned since the start beyond the scene's own (counted when pins change, not
@@ -115,6 +125,10 @@ pub struct LiveSimulation {
     pub message: Option<String>,
     pub phases: Option<(PhaseTimes, TimingSource)>,
     status: AsyncReadback,
+    /// The GPU's count of broken springs, read back with the status.
+    torn: AsyncReadback,
+    /// The count it last delivered.
+    gpu_broken_springs: usize,
     frames_since_status: u64,
 }
 
@@ -138,6 +152,7 @@ impl LiveSimulation {
         });
         let engine = Simulation::from_scene(&scene, choice.solver(), Some(Arc::clone(&context)))?;
         let status = AsyncReadback::new(&context, "status read-back", 16);
+        let torn = AsyncReadback::new(&context, "broken spring count read-back", 16);
         let colliders = &scene.model.collision.colliders;
         Ok(Self {
             max_stable_dt: scene.max_stable_dt,
@@ -166,6 +181,8 @@ impl LiveSimulation {
             stiffness_scale: 1.0,
             bending_scale: 1.0,
             running_bending_scale: 1.0,
+            max_stretch: scene_max_stretch(&scene),
+            running_max_stretch: scene_max_stretch(&scene),
             pins_changed: 0,
             added_pins: 0,
             steps_per_frame: 10,
@@ -180,6 +197,8 @@ impl LiveSimulation {
             message: None,
             phases: None,
             status,
+            torn,
+            gpu_broken_springs: 0,
             frames_since_status: 0,
         })
     }
@@ -210,9 +229,9 @@ impl LiveSimulation {
         self.engine.copy_spheres(encoder, target);
     }
 
-    /// The buffer the renderer draws: the GPU solver's own positions, or the CPU upload.
-    pub fn positions(&self) -> Option<&wgpu::Buffer> {
-        self.engine.positions_buffer()
+    /// The buffers the renderer draws: the GPU solver's own, or the CPU uploads.
+    pub fn cloth(&self) -> Option<ClothBuffers<'_>> {
+        self.engine.cloth_buffers()
     }
 
     /// The wind the controls describe.
@@ -280,12 +299,20 @@ impl LiveSimulation {
     /// Sends what the controls changed to the engine, in place: the material, the control,
     /// the self-collision set-up (only that builds anything: the GPU's self-collision pass).
     pub fn apply(&mut self) {
-        if self.bending_scale != self.running_bending_scale {
-            // Other stiffnesses: the solver is built anew, carrying the run on (and the pins
-            // added since the start).
+        if (self.bending_scale, self.max_stretch)
+            != (self.running_bending_scale, self.running_max_stretch)
+        {
+            // Other stiffnesses or another tearing threshold: the solver is built anew,
+            // carrying the run on (the pins added since the start, the springs torn so far).
             let mut model = self.scene.model.with_bending_scale(self.bending_scale);
             model.pinned.clone_from(&self.model().pinned);
+            if model.tearing.is_some() {
+                model.tearing = Some(Tearing {
+                    max_stretch: self.max_stretch,
+                });
+            }
             self.running_bending_scale = self.bending_scale;
+            self.running_max_stretch = self.max_stretch;
             if let Err(error) = self.engine.set_model(model) {
                 self.message = Some(error.to_string());
                 self.paused = true;
@@ -386,7 +413,9 @@ impl LiveSimulation {
         ) {
             Ok(engine) => {
                 self.engine = engine;
+                self.gpu_broken_springs = 0;
                 self.running_bending_scale = 1.0;
+                self.running_max_stretch = scene_max_stretch(&self.scene);
                 self.pins_were_changed();
                 self.message = None;
                 self.apply();
@@ -394,6 +423,15 @@ impl LiveSimulation {
             Err(error) => self.message = Some(format!("{}: {error:#}", self.choice.label())),
         }
         self.paused = false;
+    }
+
+    /// How many springs have torn: counted now on the CPU, as of the last status read-back on
+    /// the GPU (which never waits for it).
+    pub fn broken_springs(&self) -> usize {
+        match self.engine.cpu_solver() {
+            Some(cpu) => cpu.broken_flags().iter().filter(|b| **b).count(),
+            None => self.gpu_broken_springs,
+        }
     }
 
     /// Dynamic balls the panel and keys can push, as collider indices.
@@ -439,6 +477,9 @@ impl LiveSimulation {
                 && self.status.encode_copy(encoder, solver.status_buffer())
             {
                 self.frames_since_status = 0;
+                if let Some(count) = solver.broken_count_buffer() {
+                    self.torn.encode_copy(encoder, count);
+                }
             }
         }
     }
@@ -446,6 +487,10 @@ impl LiveSimulation {
     /// After submission: asks for the status read-back and judges one that has arrived.
     pub fn after_submit(&mut self) {
         self.status.request();
+        self.torn.request();
+        if let Some(bytes) = self.torn.try_take(&self.context) {
+            self.gpu_broken_springs = bytemuck::pod_read_unaligned::<u32>(&bytes[..4]) as usize;
+        }
         if let Some(bytes) = self.status.try_take(&self.context)
             && let Some(solver) = self.engine.gpu_solver_mut()
             && let Err(error) = solver.judge_status(&bytes)

@@ -59,14 +59,14 @@ impl LiveView {
         simulation: &LiveSimulation,
         target: &wgpu::TextureView,
     ) -> Result<bool, GpuError> {
-        let positions = simulation.positions().ok_or_else(|| {
+        let cloth = simulation.cloth().ok_or_else(|| {
             GpuError::Validation("the solver has no position buffer to draw".into())
         })?;
         let mut picking = false;
         if let Some(at) = self.pointer.pick_request() {
             picking = self
                 .picker
-                .encode(context, encoder, positions, &self.camera, at);
+                .encode(context, encoder, cloth.positions, &self.camera, at);
             if picking {
                 self.pointer.pick_recorded();
             }
@@ -82,7 +82,7 @@ impl LiveView {
         self.renderer.encode(
             context,
             encoder,
-            positions,
+            cloth,
             target,
             self.pointer.size,
             &self.camera,

@@ -75,13 +75,13 @@ impl OffscreenRun {
         // Dynamic balls are where the GPU put them: copied, not read back.
         self.simulation
             .copy_spheres(&mut encoder, self.renderer.sphere_buffer());
-        let positions = self.simulation.positions_buffer().ok_or_else(|| {
+        let cloth = self.simulation.cloth_buffers().ok_or_else(|| {
             GpuError::Validation("the reference solver has no positions to draw".into())
         })?;
         self.renderer.encode(
             &context,
             &mut encoder,
-            positions,
+            cloth,
             &self.target.view,
             self.target.size,
             &self.camera,

@@ -1,6 +1,7 @@
 //! The [`Simulation`] facade: one type over the reference, CPU and GPU solvers, with every call a
 //! front end needs (build, step, read, drive live, time, draw).
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -10,11 +11,13 @@ use hooke_core::reference::ReferenceSolver;
 use hooke_core::scene::Scene;
 use hooke_core::selfcollide::SelfCollision;
 use hooke_core::stability::{StabilityLimit, stability_limit};
+use hooke_core::tearing;
 use hooke_core::{
     Control, MassModel, Material, Model, ModelError, ModelOptions, PhaseTimes, SimError, Snapshot,
     Solver, State, StiffnessModel, TimingSource,
 };
 use hooke_cpu::{CpuError, CpuMemory, CpuOptions, CpuSolver, Method};
+use hooke_gpu::render::ClothBuffers;
 use hooke_gpu::wgpu;
 use hooke_gpu::{
     Accumulation, GpuContext, GpuError, GpuMemory, GpuMethod, GpuSolver, positions_to_vec4,
@@ -153,9 +156,17 @@ pub enum MemoryReport {
 
 enum Engine {
     Reference(Box<ReferenceSolver>),
-    /// With the buffer the positions are uploaded into for drawing, once asked for.
-    Cpu(Box<CpuSolver>, Option<wgpu::Buffer>),
+    /// With the buffers the positions and broken springs are uploaded into for drawing.
+    Cpu(Box<CpuSolver>, Uploads),
     Gpu(Box<GpuSolver>),
+}
+
+/// What a CPU simulation uploads for drawing, each buffer created on first use.
+#[derive(Default)]
+struct Uploads {
+    positions: Option<wgpu::Buffer>,
+    /// The broken flags and how many were set when they were uploaded.
+    broken: Option<(wgpu::Buffer, usize)>,
 }
 
 impl Engine {
@@ -480,10 +491,16 @@ impl Simulation {
                 solver.encode_steps(encoder, steps);
                 Ok(())
             }
-            Engine::Cpu(solver, upload) => {
+            Engine::Cpu(solver, uploads) => {
                 solver.step(steps)?;
                 let state = solver.read_state()?;
-                upload_positions(gpu.as_deref(), upload, &state.positions)
+                if let Some(context) = gpu.as_deref() {
+                    uploads.positions(context, &state.positions);
+                    if self.model.tearing.is_some() {
+                        uploads.broken(context, solver.broken_flags());
+                    }
+                }
+                Ok(())
             }
             Engine::Reference(solver) => {
                 solver.step(steps)?;
@@ -497,9 +514,41 @@ impl Simulation {
     pub fn positions_buffer(&self) -> Option<&wgpu::Buffer> {
         match &self.engine {
             Engine::Gpu(solver) => Some(solver.current_positions()),
-            Engine::Cpu(_, upload) => upload.as_ref(),
+            Engine::Cpu(_, uploads) => uploads.positions.as_ref(),
             Engine::Reference(_) => None,
         }
+    }
+
+    /// What a renderer draws: [`Simulation::positions_buffer`] and, when springs can break,
+    /// the broken flags (the GPU solver's own, or the CPU's uploaded by
+    /// [`Simulation::encode_frame`]).
+    pub fn cloth_buffers(&self) -> Option<ClothBuffers<'_>> {
+        let broken_springs = match &self.engine {
+            Engine::Gpu(solver) => solver.broken_springs_buffer(),
+            Engine::Cpu(_, uploads) => uploads.broken.as_ref().map(|(b, _)| b),
+            Engine::Reference(_) => None,
+        };
+        Some(ClothBuffers {
+            positions: self.positions_buffer()?,
+            broken_springs,
+        })
+    }
+
+    /// The springs torn so far, in order (a read-back on the GPU).
+    pub fn broken_springs(&self) -> Result<Vec<u32>, SimError> {
+        self.solver().broken_springs()
+    }
+
+    /// The model as the solver steps it now: torn springs at zero stiffness. What energies,
+    /// strains and health checks of the current state are measured on (a read-back of the
+    /// broken flags on the GPU, none when nothing has torn).
+    pub fn torn_model(&self) -> Result<Cow<'_, Model>, SimError> {
+        let broken = self.broken_springs()?;
+        if broken.is_empty() {
+            return Ok(Cow::Borrowed(&self.model));
+        }
+        let flags = tearing::broken_flags(&broken, self.model.spring_count())?;
+        Ok(Cow::Owned(self.model.with_springs_broken(&flags)))
     }
 
     /// Records copies of the GPU's dynamic ball places into a renderer's sphere buffer; on the
@@ -522,29 +571,46 @@ impl Simulation {
     }
 }
 
-/// Copies positions into the draw buffer, creating it on first use.
-fn upload_positions(
-    gpu: Option<&GpuContext>,
-    upload: &mut Option<wgpu::Buffer>,
-    positions: &[DVec3],
-) -> Result<(), SimError> {
-    let Some(context) = gpu else {
-        return Ok(());
-    };
-    let buffer = upload.get_or_insert_with(|| {
-        context.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cpu positions upload"),
-            size: 16 * positions.len().max(1) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    });
-    context.queue.write_buffer(
-        buffer,
-        0,
-        bytemuck::cast_slice(&positions_to_vec4(positions)),
-    );
-    Ok(())
+impl Uploads {
+    /// Copies positions into the draw buffer, creating it on first use.
+    fn positions(&mut self, context: &GpuContext, positions: &[DVec3]) {
+        let buffer = self.positions.get_or_insert_with(|| {
+            upload_buffer(context, "cpu positions upload", 16 * positions.len() as u64)
+        });
+        context.queue.write_buffer(
+            buffer,
+            0,
+            bytemuck::cast_slice(&positions_to_vec4(positions)),
+        );
+    }
+
+    /// Copies the broken flags (one `u32` per spring) when more have broken since the last
+    /// upload (springs only ever break while stepping).
+    fn broken(&mut self, context: &GpuContext, flags: &[bool]) {
+        let count = flags.iter().filter(|b| **b).count();
+        if self.broken.as_ref().is_some_and(|(_, sent)| *sent == count) {
+            return;
+        }
+        let (buffer, sent) = self.broken.get_or_insert_with(|| {
+            let buffer =
+                upload_buffer(context, "cpu broken springs upload", 4 * flags.len() as u64);
+            (buffer, usize::MAX)
+        });
+        let words: Vec<u32> = flags.iter().map(|b| u32::from(*b)).collect();
+        context
+            .queue
+            .write_buffer(buffer, 0, bytemuck::cast_slice(&words));
+        *sent = count;
+    }
+}
+
+fn upload_buffer(context: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
+    context.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 fn build(
@@ -557,9 +623,10 @@ fn build(
         SolverChoice::Reference => {
             Engine::Reference(Box::new(ReferenceSolver::new(model, material)))
         }
-        SolverChoice::Cpu(options) => {
-            Engine::Cpu(Box::new(CpuSolver::new(model, material, options)?), None)
-        }
+        SolverChoice::Cpu(options) => Engine::Cpu(
+            Box::new(CpuSolver::new(model, material, options)?),
+            Uploads::default(),
+        ),
         SolverChoice::Gpu(method) => {
             let context = gpu
                 .cloned()

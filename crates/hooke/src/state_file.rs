@@ -1,7 +1,7 @@
 //! A run's state on disk, so it can continue: `NAME.ply` holds float64 `x` and `x_prev` per
 //! vertex with the faces (any PLY tool reads it), and `NAME.toml` beside it what a PLY cannot
 //! hold: the step counter (which places scripted colliders), the time step, and each dynamic
-//! ball's place, velocity and spin. Both are written through a temporary file and a rename.
+//! ball's place, velocity and spin, and the springs torn so far. Both are written through a temporary file and a rename.
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +23,9 @@ struct Sidecar {
     vertices: usize,
     #[serde(default, rename = "ball")]
     balls: Vec<Ball>,
+    /// The springs torn so far (spring indices, as `hooke info` counts springs).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    broken_springs: Vec<u32>,
 }
 
 /// A dynamic ball as it was.
@@ -94,6 +97,7 @@ pub fn save_state(
         dt,
         vertices: state.positions.len(),
         balls,
+        broken_springs: snapshot.broken_springs.clone(),
     };
     let path = sidecar_path(ply);
     let text = toml::to_string(&sidecar).map_err(|e| StateFileError::Invalid {
@@ -159,9 +163,20 @@ pub fn load_state(ply: &Path, model: &Model, dt: f64) -> Result<Snapshot, StateF
             "the state has {saved_balls} dynamic balls, the scene {scene_balls}"
         )));
     }
+    if let Some(&spring) = sidecar
+        .broken_springs
+        .iter()
+        .find(|&&s| s as usize >= model.spring_count())
+    {
+        return Err(invalid(format!(
+            "broken_springs: spring {spring} does not exist (the scene has {} springs)",
+            model.spring_count()
+        )));
+    }
     Ok(Snapshot {
         state,
         colliders,
         steps_taken: sidecar.steps_taken,
+        broken_springs: sidecar.broken_springs,
     })
 }

@@ -90,6 +90,8 @@ struct Info {
     self_collision: Option<String>,
     /// One line per handle: its vertices and what moves it.
     handles: Vec<String>,
+    /// Springs break past this many times their rest length (`[tearing]`), if they do.
+    tearing_max_stretch: Option<f64>,
 }
 
 /// A collider's or handle's keyframed path in a few words.
@@ -195,6 +197,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         gpu_memory,
         colliders: scene.model.collision.colliders.iter().map(describe_collider).collect(),
         handles: scene.model.handles.iter().map(describe_handle).collect(),
+        tearing_max_stretch: scene.model.tearing.map(|t| t.max_stretch),
         self_collision: scene.model.collision.self_collision.map(|c| {
             format!(
                 "distance {} m, cells {} m, K = {} grids (shifted k/K of a cell along (1,1,1)), window {}",
@@ -259,6 +262,11 @@ fn print_info(info: &Info) {
     }
     for (k, handle) in info.handles.iter().enumerate() {
         println!("handle {k}        {handle}");
+    }
+    if let Some(stretch) = info.tearing_max_stretch {
+        println!(
+            "tearing         springs break past {stretch} times their rest length (bending springs with their triangles)"
+        );
     }
     let mut memory = Table::new();
     memory.set_header(vec![

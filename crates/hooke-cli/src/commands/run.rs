@@ -78,7 +78,10 @@ struct Summary {
     energy_elastic: f64,
     energy_gravitational: f64,
     energy_total: f64,
+    /// Of the springs that still hold.
     max_strain: f64,
+    /// Springs torn (see `[tearing]`), in all: a resumed run counts those it started with.
+    broken_springs: usize,
     frames_written: usize,
     output: PathBuf,
     /// The state to `--resume` from (its `.toml` beside it).
@@ -197,7 +200,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         progress.set_position(step);
         let state = match result.and_then(|()| {
             let state = solver.state()?;
-            check_health(&scene.model, &state.positions, solver.steps_taken())?;
+            check_health(
+                &*solver.torn_model()?,
+                &state.positions,
+                solver.steps_taken(),
+            )?;
             Ok(state)
         }) {
             Ok(state) => state,
@@ -226,7 +233,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         frames_written,
         &plan,
     )?;
-    print_summary(&summary, &energy(&scene.model, &state, &scene.material));
+    print_summary(
+        &summary,
+        &energy(&*solver.torn_model()?, &state, &scene.material),
+    );
     let json = serde_json::to_string_pretty(&summary)?;
     let summary_path = plan.file("summary.json");
     hooke_core::atomic_file::write_atomically(&summary_path, |file| {
@@ -290,7 +300,9 @@ fn summarize(
     plan: &OutputPlan,
 ) -> anyhow::Result<Summary> {
     let colliders = solver.colliders()?;
-    let e = energy(&scene.model, state, &scene.material);
+    let model = solver.torn_model()?;
+    let e = energy(&model, state, &scene.material);
+    let broken_springs = solver.broken_springs()?.len();
     let seconds = solver_time.as_secs_f64();
     Ok(Summary {
         scene: scene.name.clone(),
@@ -316,7 +328,8 @@ fn summarize(
         energy_elastic: e.elastic,
         energy_gravitational: e.gravitational,
         energy_total: e.total(),
-        max_strain: max_strain(&scene.model, &state.positions).0,
+        max_strain: max_strain(&model, &state.positions).0,
+        broken_springs,
         frames_written,
         output: plan.shown().to_path_buf(),
         final_state: plan.file("final-state.ply"),
@@ -355,6 +368,9 @@ fn print_summary(s: &Summary, e: &Energy) {
         e.gravitational
     );
     println!("max strain   {:.4}%", 100.0 * s.max_strain);
+    if s.broken_springs > 0 {
+        println!("torn         {} springs broken", s.broken_springs);
+    }
     for ball in &s.balls {
         let [x, y, z] = ball.center;
         let speed = glam::DVec3::from_array(ball.velocity).length();

@@ -76,6 +76,15 @@ pub fn show(
             } else {
                 ui.label("no bending springs (add [bending] to the scene)");
             }
+            if simulation.model().tearing.is_some() {
+                // Rebuilds the solver (the torn springs stay torn): applied when let go.
+                let slider = ui.add(
+                    egui::Slider::new(&mut simulation.max_stretch, 1.05..=3.0)
+                        .text("tear past stretch"),
+                );
+                changed |= slider.drag_stopped() || (slider.changed() && !slider.dragged());
+                ui.label(format!("{} springs torn", simulation.broken_springs()));
+            }
             changed |= ui
                 .add(
                     egui::Slider::new(&mut simulation.damping, 0.0..=0.01).text("damping c (kg/s)"),

@@ -176,6 +176,13 @@ pub struct Edge {
     pub triangle_count: u32,
 }
 
+/// A bending spring's two vertices (`far`, sorted) and the edge it crosses (`across`, sorted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct BendingPair {
+    pub far: [u32; 2],
+    pub across: [u32; 2],
+}
+
 /// Twice the area below which a triangle counts as degenerate, relative to its longest edge squared.
 /// A sliver this thin has no meaningful normal and makes its springs nearly collinear.
 const DEGENERATE_AREA_RATIO: f64 = 1e-12;
@@ -209,11 +216,12 @@ impl Mesh {
         edges
     }
 
-    /// The far vertices of every two triangles that share an edge, as sorted pairs, each once:
-    /// the classic distance-2 bending springs, which resist folding across that edge. Pairs
-    /// an edge already joins (or that name one vertex twice) are left out; an edge shared by
-    /// more than two triangles pairs every two of them.
-    pub fn bending_pairs(&self) -> Vec<[u32; 2]> {
+    /// The far vertices of every two triangles that share an edge, as sorted pairs, each once,
+    /// with the edge they cross: the classic distance-2 bending springs, which resist folding
+    /// across that edge. Pairs an edge already joins (or that name one vertex twice) are left
+    /// out; an edge shared by more than two triangles pairs every two of them; a pair that
+    /// crosses two edges keeps the first.
+    pub fn bending_pairs(&self) -> Vec<BendingPair> {
         // (edge key, far vertex) per triangle corner, sorted so an edge's triangles are adjacent.
         let mut opposite: Vec<(u64, u32)> = Vec::with_capacity(self.triangles.len() * 3);
         for t in &self.triangles {
@@ -224,18 +232,21 @@ impl Mesh {
         }
         opposite.sort_unstable();
         let edges: std::collections::HashSet<u64> = opposite.iter().map(|(e, _)| *e).collect();
-        let mut pairs: Vec<[u32; 2]> = Vec::new();
+        let mut pairs: Vec<BendingPair> = Vec::new();
         for shared in opposite.chunk_by(|x, y| x.0 == y.0) {
-            for (i, &(_, c)) in shared.iter().enumerate() {
+            for (i, &(key, c)) in shared.iter().enumerate() {
                 for &(_, d) in &shared[i + 1..] {
                     if c != d && !edges.contains(&edge_key(c, d)) {
-                        pairs.push([c.min(d), c.max(d)]);
+                        pairs.push(BendingPair {
+                            far: [c.min(d), c.max(d)],
+                            across: [(key >> 32) as u32, key as u32],
+                        });
                     }
                 }
             }
         }
         pairs.sort_unstable();
-        pairs.dedup();
+        pairs.dedup_by_key(|p| p.far);
         pairs
     }
 
@@ -463,18 +474,30 @@ mod tests {
     #[test]
     fn bending_pairs_join_the_far_corners_across_each_shared_edge() {
         // Two triangles sharing the diagonal 0-2: one pair, across it.
-        assert_eq!(square().bending_pairs(), [[1, 3]]);
+        assert_eq!(
+            square().bending_pairs(),
+            [BendingPair {
+                far: [1, 3],
+                across: [0, 2]
+            }]
+        );
         // On a grid every interior edge gives one pair, none of them an edge.
         let sheet = grid(6, 5, [1.0, 1.0], GridPlane::Xz, DVec3::ZERO);
         let edges = sheet.edges();
         let interior = edges.iter().filter(|e| e.triangle_count == 2).count();
         let pairs = sheet.bending_pairs();
         assert_eq!(pairs.len(), interior);
-        assert!(
-            pairs
+        assert!(pairs.iter().all(|p| {
+            let [a, b] = p.far;
+            a < b && !edges.iter().any(|e| (e.a, e.b) == (a, b))
+        }));
+        // Each crosses an interior edge, between its two far corners.
+        assert!(pairs.iter().all(|p| {
+            let [c, d] = p.across;
+            edges
                 .iter()
-                .all(|[a, b]| a < b && !edges.iter().any(|e| (e.a, e.b) == (*a, *b)))
-        );
+                .any(|e| (e.a, e.b) == (c, d) && e.triangle_count == 2)
+        }));
         // A tetrahedron's far corners across an edge are already joined: no pairs.
         let tetrahedron = Mesh {
             positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z],

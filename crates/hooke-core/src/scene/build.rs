@@ -13,6 +13,7 @@ use super::{
 use crate::handles::{Handle, HandleMotion};
 use crate::mesh::{self, Mesh, MeshWarning};
 use crate::stability::{AUTO_DT_SAFETY, stability_limit};
+use crate::tearing::Tearing;
 use crate::{MassModel, Material, Model, ModelOptions, StiffnessModel};
 
 /// Generated sheets are 1 micrometre to 1000 km a side: beyond that, float32 positions cannot
@@ -139,6 +140,19 @@ impl SceneFile {
             for (k, [a, b]) in model.stiffnesses.iter_mut().zip(&model.spring_ends) {
                 *k *= 0.5 * (factors[*a as usize] + factors[*b as usize]);
             }
+        }
+
+        if let Some(tearing) = self.tearing.as_ref().filter(|t| t.enabled) {
+            let max_stretch = tearing.max_stretch;
+            require(max_stretch > 1.0 && max_stretch.is_finite(), || {
+                invalid(
+                    "tearing.max_stretch",
+                    format!(
+                        "must be a number above 1 (a spring's length over its rest length), found {max_stretch}"
+                    ),
+                )
+            })?;
+            model.tearing = Some(Tearing { max_stretch });
         }
 
         let (control, collision) = self.build_inputs(&mesh, &invalid)?;

@@ -134,6 +134,7 @@ impl SceneFile {
             self_collision: None,
             bending: None,
             handles: Vec::new(),
+            tearing: None,
         }
     }
 }

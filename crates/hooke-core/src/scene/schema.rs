@@ -37,6 +37,18 @@ pub struct SceneFile {
     pub bending: Option<BendingSection>,
     #[serde(default, rename = "handle", skip_serializing_if = "Vec::is_empty")]
     pub handles: Vec<HandleSection>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tearing: Option<TearingSection>,
+}
+
+/// Springs that break, for good, when stretched too far (see `hooke_core::tearing`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TearingSection {
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// A spring breaks when stretched past this many times its rest length (more than 1).
+    pub max_stretch: f64,
 }
 
 /// Pinned vertices moved together by a path or a collider (see `hooke_core::handles`). Which

@@ -6,6 +6,7 @@ use glam::DVec3;
 
 use super::*;
 use crate::collide::Shape;
+use crate::tearing::Tearing;
 
 const CLOTH: &str = r#"
 [mesh]
@@ -429,6 +430,50 @@ fn every_key_of_the_scene_format_page_parses() {
     let file = SceneFile::parse(keys, "scenes/README.md").unwrap_or_else(|e| panic!("{e}"));
     assert!(file.bending.is_some() && !file.material.stiffness_regions.is_empty());
     assert_eq!(file.handles.len(), 1);
+    assert!(file.tearing.is_some());
+}
+
+#[test]
+fn tearing_takes_a_stretch_above_one_and_names_the_field_otherwise() {
+    let scene = build(&format!(
+        "{CLOTH}
+[tearing]
+max_stretch = 1.4
+"
+    ))
+    .expect("builds");
+    assert_eq!(scene.model.tearing, Some(Tearing { max_stretch: 1.4 }));
+    let off = build(&format!(
+        "{CLOTH}
+[tearing]
+enabled = false
+max_stretch = 1.4
+"
+    ));
+    assert_eq!(off.expect("builds").model.tearing, None);
+    for bad in ["1.0", "0.5", "-2", "inf"] {
+        let error = build(&format!(
+            "{CLOTH}
+[tearing]
+max_stretch = {bad}
+"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            error.starts_with("test.toml: tearing.max_stretch: must be a number above 1"),
+            "{error}"
+        );
+    }
+    let error = build(&format!(
+        "{CLOTH}
+[tearing]
+stretch = 1.4
+"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(error.contains("unknown field `stretch`"), "{error}");
 }
 
 #[test]

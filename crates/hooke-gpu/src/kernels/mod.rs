@@ -17,6 +17,7 @@ pub mod handles;
 pub mod integrate;
 pub mod radix_sort;
 pub mod self_collide;
+pub mod tear;
 pub mod tick;
 
 #[cfg(test)]
@@ -71,6 +72,7 @@ pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
 pub const INTEGRATE: &str = kernel_source!("integrate.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
+pub const TEAR: &str = kernel_source!("tear.wgsl");
 pub const COLLIDE: &str = kernel_source!(with paths "collide.wgsl");
 pub const BALLS: &str = kernel_source!(with paths "balls.wgsl");
 pub const HANDLES: &str = kernel_source!(with paths "handles.wgsl");
@@ -91,6 +93,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("integrate", INTEGRATE),
     ("external", EXTERNAL),
     ("tick", TICK),
+    ("tear", TEAR),
     ("collide", COLLIDE),
     ("balls", BALLS),
     ("handles", HANDLES),

@@ -19,6 +19,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Vec3};
 use hooke_core::Model;
 use hooke_core::collide::{Collider, Shape};
+use hooke_core::tearing;
 use wgpu::util::DeviceExt;
 
 use crate::context::GpuContext;
@@ -105,6 +106,14 @@ impl SceneBounds {
     }
 }
 
+/// The solver's buffers a frame draws: positions (`vec4` per vertex) and, when springs can
+/// break, the broken flags (`u32` per spring).
+#[derive(Clone, Copy, Debug)]
+pub struct ClothBuffers<'a> {
+    pub positions: &'a wgpu::Buffer,
+    pub broken_springs: Option<&'a wgpu::Buffer>,
+}
+
 /// Pipelines and static buffers for drawing one model.
 #[derive(Debug)]
 pub struct SceneRenderer {
@@ -136,6 +145,12 @@ pub struct SceneRenderer {
     spring_ends: wgpu::Buffer,
     pinned: wgpu::Buffer,
     normals: wgpu::Buffer,
+    /// Per triangle the springs of its edges (when the model tears; else a placeholder).
+    triangle_edges: wgpu::Buffer,
+    /// Zeros, bound in place of the solver's broken flags when it has none yet.
+    no_tears: wgpu::Buffer,
+    /// True if the model tears: triangles with a broken edge are not drawn.
+    tears: bool,
     vertex_count: u32,
     triangle_count: u32,
     spring_count: u32,
@@ -179,11 +194,20 @@ impl SceneRenderer {
         let pinned: Vec<u32> = (0..n as u32)
             .filter(|&v| model.pinned[v as usize])
             .collect();
+        let tears = model.tearing.is_some();
+        let triangle_edges: Vec<[u32; 4]> = if tears {
+            tearing::triangle_edge_springs(model)
+                .iter()
+                .map(|e| [e[0], e[1], e[2], 0])
+                .collect()
+        } else {
+            vec![[0; 4]]
+        };
         let counts = context
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("render counts"),
-                contents: bytemuck::cast_slice(&[n as u32, 0, 0, 0]),
+                contents: bytemuck::cast_slice(&[n as u32, u32::from(tears), 0, 0]),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
         let frame = context.device.create_buffer(&wgpu::BufferDescriptor {
@@ -259,6 +283,9 @@ impl SceneRenderer {
                 spring_ends: storage(context, "spring ends", &model.spring_ends, none),
                 pinned: storage(context, "pinned vertices", &pinned, none),
                 normals: gpu::zeroed(context, "normals", 16 * n as u64, none),
+                triangle_edges: storage(context, "triangle edges", &triangle_edges, none),
+                no_tears: storage(context, "no broken springs", &[0u32; 4], none),
+                tears,
                 vertex_count: n as u32,
                 triangle_count: model.triangles.len() as u32,
                 spring_count: model.spring_count() as u32,
@@ -406,14 +433,14 @@ impl SceneRenderer {
         view
     }
 
-    /// Records the normals pass and the render pass drawing `positions` (the solver's current
-    /// position buffer, vec4 per vertex) into `target` of `size` pixels.
+    /// Records the normals pass and the render pass drawing `cloth` (the solver's current
+    /// buffers) into `target` of `size` pixels.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &mut self,
         context: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
-        positions: &wgpu::Buffer,
+        cloth: ClothBuffers<'_>,
         target: &wgpu::TextureView,
         size: [u32; 2],
         camera: &Camera,
@@ -424,6 +451,8 @@ impl SceneRenderer {
         context
             .queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniforms));
+        let positions = cloth.positions;
+        let broken = cloth.broken_springs.unwrap_or(&self.no_tears);
         let normals_group = bind_group(
             context,
             "normals",
@@ -434,6 +463,8 @@ impl SceneRenderer {
                 (2, self.vertex_triangles.as_entire_binding()),
                 (3, self.normals.as_entire_binding()),
                 (4, self.counts.as_entire_binding()),
+                (5, self.triangle_edges.as_entire_binding()),
+                (6, broken.as_entire_binding()),
             ],
         );
         gpu::dispatch(
@@ -454,6 +485,8 @@ impl SceneRenderer {
                 (5, self.rest_edges.as_entire_binding()),
                 (6, self.spring_ends.as_entire_binding()),
                 (7, self.pinned.as_entire_binding()),
+                (12, self.triangle_edges.as_entire_binding()),
+                (13, broken.as_entire_binding()),
             ];
             let used: Vec<(u32, wgpu::BindingResource<'_>)> = all
                 .into_iter()
@@ -461,9 +494,9 @@ impl SceneRenderer {
                 .collect();
             bind_group(context, "scene", &pipeline.get_bind_group_layout(0), &used)
         };
-        let cloth_group = group_for(&self.cloth, &[0, 1, 2, 3, 4, 5]);
+        let cloth_group = group_for(&self.cloth, &[0, 1, 2, 3, 4, 5, 12, 13]);
         let ground_group = group_for(&self.ground, &[0]);
-        let springs_group = group_for(&self.springs, &[0, 1, 6]);
+        let springs_group = group_for(&self.springs, &[0, 1, 6, 13]);
         let pins_group = group_for(&self.pins, &[0, 1, 7]);
         let wind_group = group_for(&self.wind, &[0]);
         let sphere_group = bind_group(
@@ -593,7 +626,7 @@ impl SceneRenderer {
                 if options.color_by_strain { 1.0 } else { 0.0 },
                 options.strain_scale,
                 0.012 * extent,
-                0.0,
+                if self.tears { 1.0 } else { 0.0 },
             ],
         }
     }

@@ -14,7 +14,8 @@ struct Frame {
     // Wind direction (xyz, unit) and arrow length (m); arrow grid origin and spacing.
     wind: vec4<f32>,
     wind_origin: vec4<f32>,
-    // x: colour by strain (1) or checker (0); y: strain at full red; z: pin marker size (m).
+    // x: colour by strain (1) or checker (0); y: strain at full red; z: pin marker size (m);
+    // w: 1 if springs can break (triangles with a broken edge are not drawn).
     style: vec4<f32>,
 }
 
@@ -29,6 +30,20 @@ struct Frame {
 // Per spring: its two vertices.
 @group(0) @binding(6) var<storage, read> springs: array<vec2<u32>>;
 @group(0) @binding(7) var<storage, read> pins: array<u32>;
+// Per triangle: the springs of edges 01, 12, 20; per spring: 1 once broken (the solver's flags).
+@group(0) @binding(12) var<storage, read> triangle_edges: array<vec4<u32>>;
+@group(0) @binding(13) var<storage, read> broken: array<u32>;
+
+fn torn(triangle: u32) -> bool {
+    if frame.style.w == 0.0 {
+        return false;
+    }
+    let edges = triangle_edges[triangle];
+    return broken[edges.x] != 0u || broken[edges.y] != 0u || broken[edges.z] != 0u;
+}
+
+// Outside the depth range: a corner (or a whole primitive) placed here draws nothing.
+const CLIPPED = vec4<f32>(0.0, 0.0, 2.0, 1.0);
 
 struct ClothOut {
     @builtin(position) clip: vec4<f32>,
@@ -61,6 +76,9 @@ fn vs_cloth(@builtin(vertex_index) index: u32) -> ClothOut {
     out.normal = normals[vertex].xyz;
     out.uv = uvs[vertex];
     out.strain = stretch - 1.0;
+    if torn(index / 3u) {
+        out.clip = CLIPPED;
+    }
     return out;
 }
 
@@ -127,6 +145,9 @@ fn vs_springs(@builtin(vertex_index) index: u32) -> LineOut {
     // Pulled slightly toward the camera so the lines win the depth test against their faces.
     out.clip.z = out.clip.z - 2e-4 * out.clip.w;
     out.color = vec3<f32>(0.10, 0.12, 0.15);
+    if frame.style.w != 0.0 && broken[index / 2u] != 0u {
+        out.clip = CLIPPED;
+    }
     return out;
 }
 

@@ -27,10 +27,14 @@ class GpuError(HookeError):
     """No GPU adapter, a missing optional feature, or a device error."""
 
 class Snapshot:
-    """A saved state (positions, previous positions, balls, step counter) to restore later."""
+    """A saved state (positions, previous positions, balls, step counter, torn springs) to
+    restore later."""
 
     @property
     def steps_taken(self) -> int: ...
+    @property
+    def broken_spring_count(self) -> int:
+        """How many springs had torn when the snapshot was taken."""
 
 class Simulation:
     """A mass-spring simulation on the float64 reference, the CPU or the GPU solver."""
@@ -68,6 +72,7 @@ class Simulation:
         self_collision: dict[str, Any] | None = None,
         bending: dict[str, Any] | None = None,
         handles: Sequence[dict[str, Any]] | None = None,
+        tearing: dict[str, Any] | None = None,
         uvs: npt.ArrayLike | None = None,
         backend: Backend = "cpu",
         method: Method | None = None,
@@ -88,6 +93,8 @@ class Simulation:
     @property
     def bending_spring_count(self) -> int:
         """Of spring_count, the bending springs: the last ones in springs()."""
+    def broken_springs(self) -> npt.NDArray[np.uint32]:
+        """The springs torn so far (indices into springs()), in order: a (B,) array."""
     @property
     def steps_taken(self) -> int: ...
     @property
@@ -134,7 +141,8 @@ class Simulation:
     def unpin(self, vertex: int) -> None:
         """Lets a pinned vertex (a scene pin too) move again, from rest where it is."""
     def energy(self) -> dict[str, float]: ...
-    def max_strain(self) -> tuple[float, int]: ...
+    def max_strain(self) -> tuple[float, int]:
+        """The largest strain |l| / l0 - 1 of any spring still whole, and its index."""
     def pin_reactions(
         self,
     ) -> tuple[npt.NDArray[np.uint32], npt.NDArray[np.float64]]: ...
