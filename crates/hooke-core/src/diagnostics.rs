@@ -111,6 +111,15 @@ pub fn pin_reactions(
         .collect()
 }
 
+/// Force of a damper `c` (N s/m) along the spring `a`-`b` on `a`, against the rate the
+/// spring's length changes: `-c ((v_a - v_b) . u) u` with `u` the unit vector from `b` to `a`
+/// (zero when the ends coincide).
+#[inline]
+pub fn damper_force_on_a(a: DVec3, b: DVec3, va: DVec3, vb: DVec3, damping: f64) -> DVec3 {
+    let u = (a - b).normalize_or_zero();
+    -damping * (va - vb).dot(u) * u
+}
+
 /// Force of the spring `a`-`b` on `a` (paper eq. 1 with the sign of eq. 4): pulls `a` toward `b`
 /// when stretched, pushes it away when compressed.
 #[inline]
@@ -124,6 +133,31 @@ pub fn spring_force_on_a(a: DVec3, b: DVec3, rest_length: f64, stiffness: f64) -
 mod tests {
     use super::*;
     use crate::{MassModel, ModelOptions, StiffnessModel};
+
+    #[test]
+    fn a_damper_resists_only_the_rate_its_spring_changes_length() {
+        let (a, b) = (DVec3::new(1.0, 0.0, 0.0), DVec3::ZERO);
+        // Ends moving apart at 2 m/s along the spring: -c * 2 along it.
+        let apart = damper_force_on_a(a, b, DVec3::X * 1.5, DVec3::X * -0.5, 0.1);
+        assert!(
+            (apart - DVec3::new(-0.2, 0.0, 0.0)).length() < 1e-15,
+            "{apart}"
+        );
+        // Sideways motion (a turn) and a common motion are not damped.
+        assert_eq!(
+            damper_force_on_a(a, b, DVec3::Y, DVec3::ZERO, 0.1),
+            DVec3::ZERO
+        );
+        assert_eq!(
+            damper_force_on_a(a, b, DVec3::ONE, DVec3::ONE, 0.1),
+            DVec3::ZERO
+        );
+        // Coincident ends: no direction, no force.
+        assert_eq!(
+            damper_force_on_a(b, b, DVec3::X, DVec3::ZERO, 0.1),
+            DVec3::ZERO
+        );
+    }
 
     #[test]
     fn over_stretched_spring_is_an_explosion_and_nan_is_non_finite() {

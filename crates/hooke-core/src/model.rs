@@ -108,6 +108,9 @@ pub struct Model {
     /// The last this many springs are bending springs (see [`Model::add_bending_springs`]);
     /// the others join the mesh's edges.
     pub bending_springs: usize,
+    /// Each bending spring's own damping, N s/m: a force against the rate its length changes,
+    /// `-c ((v_a - v_b) . u) u` on its end `a` (`u` the unit vector from `b` to `a`).
+    pub bending_damping: f64,
     /// Length `bending_springs`: per bending spring, the edge springs of the two triangles it
     /// joins, the edge it crosses first (a triangle that tears takes its hinges with it).
     pub bending_hinges: Vec<[u32; 5]>,
@@ -236,6 +239,7 @@ impl Model {
             rest_lengths,
             stiffnesses,
             bending_springs: 0,
+            bending_damping: 0.0,
             bending_hinges: Vec::new(),
             masses,
             pinned,
@@ -313,6 +317,28 @@ impl Model {
             torn.stiffnesses[s] = 0.0;
         }
         torn
+    }
+
+    /// The vertex -> bending spring lists of the springs that damp: none without bending
+    /// damping, and none that is `broken` (flags in spring order, or empty for none).
+    pub fn dampers(&self, broken: &[bool]) -> Adjacency {
+        let springs: Vec<u32> = (0..self.spring_count() as u32)
+            .filter(|&s| {
+                self.bending_damping > 0.0
+                    && self.is_bending(s as usize)
+                    && !broken.get(s as usize).copied().unwrap_or(false)
+            })
+            .collect();
+        let ends: Vec<[u32; 2]> = springs
+            .iter()
+            .map(|&s| self.spring_ends[s as usize])
+            .collect();
+        let mut dampers = Adjacency::from_springs(self.vertex_count(), &ends);
+        // Entries name the model's springs, not their place in `springs`.
+        for spring in &mut dampers.springs {
+            *spring = springs[*spring as usize];
+        }
+        dampers
     }
 
     /// This model with every bending spring's stiffness times `scale` (0 turns them off; the

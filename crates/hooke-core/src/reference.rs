@@ -10,7 +10,7 @@ use crate::collide::{
     Collider, advance_balls, apply_pushes, first_non_finite_ball, placed, resolve_and_report,
     restore_balls,
 };
-use crate::diagnostics::spring_force_on_a;
+use crate::diagnostics::{damper_force_on_a, spring_force_on_a};
 use crate::forces::add_external_forces;
 use crate::handles::place_handles;
 use crate::selfcollide::{self, SelfCollision};
@@ -66,6 +66,17 @@ impl ReferenceSolver {
             );
             self.forces[a] += force;
             self.forces[b] -= force;
+            if model.bending_damping > 0.0 && model.is_bending(s) {
+                let damping = damper_force_on_a(
+                    state.positions[a],
+                    state.positions[b],
+                    state.velocity(a, material.dt),
+                    state.velocity(b, material.dt),
+                    model.bending_damping,
+                );
+                self.forces[a] += damping;
+                self.forces[b] -= damping;
+            }
         }
         let dt = material.dt;
         self.steps_taken += 1;

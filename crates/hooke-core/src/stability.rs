@@ -6,6 +6,8 @@
 //! the stiffest springs, smallest mass and highest valence together. Solving the quadratic
 //! `w^2 dt^2 + 2 (c/m) dt - 4 = 0` per vertex gives the bound below. Compressed springs have a
 //! softer tangent stiffness, so the bound holds for every configuration reached by stretching.
+//! Bending springs' own dampers add to `c` the same way springs add to `w^2`: at most twice the
+//! sum of a vertex's dampers (Gershgorin on the damping matrix).
 
 use crate::Model;
 
@@ -38,7 +40,12 @@ pub fn stability_limit(model: &Model, damping: f64) -> StabilityLimit {
             .map(|k| model.stiffnesses[model.adjacency.springs[k] as usize])
             .sum();
         let omega_squared = 2.0 * stiffness_sum / mass;
-        let damping_rate = damping / mass;
+        let dampers = model
+            .adjacency
+            .range(vertex)
+            .filter(|k| model.is_bending(model.adjacency.springs[*k] as usize))
+            .count();
+        let damping_rate = (damping + 2.0 * model.bending_damping * dampers as f64) / mass;
         let max_dt = if omega_squared > 0.0 {
             (-damping_rate + (damping_rate * damping_rate + 4.0 * omega_squared).sqrt())
                 / omega_squared

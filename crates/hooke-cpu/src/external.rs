@@ -1,4 +1,5 @@
-//! Point forces, drags and wind in float32 (models documented in `hooke_core::control`).
+//! Point forces, drags, wind and bending springs' dampers in float32 (models documented in
+//! `hooke_core::control`; dampers in [`hooke_core::diagnostics::damper_force_on_a`]).
 //!
 //! Gravity is folded into the integrator; everything else lands in an extra per-vertex force
 //! buffer that exists only when the parameters ask for it, so the common gravity-only step
@@ -32,19 +33,36 @@ struct WindField {
     triangle_force: Vec<Vec3>,
 }
 
-/// The non-gravity external forces of one control.
+/// Bending springs' dampers, per internal vertex in a fixed order (CSR).
+#[derive(Debug)]
+struct Dampers {
+    offsets: Vec<u32>,
+    others: Vec<u32>,
+    damping: f32,
+}
+
+/// The non-gravity forces of one control and the model's dampers.
 #[derive(Debug)]
 pub struct ExternalForces {
     constant: Soa,
     drags: Vec<Drag>,
     wind: Option<WindField>,
+    dampers: Option<Dampers>,
     inverse_dt: f32,
 }
 
 impl ExternalForces {
-    /// `None` when the control puts no force on the cloth.
-    pub fn new(model: &Model, numbering: &Numbering, control: &Control, dt: f64) -> Option<Self> {
-        if !control.acts_on_cloth() {
+    /// `None` when the control puts no force on the cloth and nothing damps. `broken` flags
+    /// the torn springs (they damp no more).
+    pub fn new(
+        model: &Model,
+        numbering: &Numbering,
+        control: &Control,
+        dt: f64,
+        broken: &[bool],
+    ) -> Option<Self> {
+        let dampers = model.dampers(broken);
+        if !control.acts_on_cloth() && dampers.neighbors.is_empty() {
             return None;
         }
         let internal = |v: u32| numbering.internal[v as usize];
@@ -92,10 +110,28 @@ impl ExternalForces {
                 vertex_triangles,
             }
         });
+        let dampers = (!dampers.neighbors.is_empty()).then(|| {
+            let mut offsets = Vec::with_capacity(numbering.padded_len + 1);
+            let mut others = Vec::with_capacity(dampers.neighbors.len());
+            offsets.push(0);
+            for k in 0..numbering.padded_len {
+                if let Some(&v) = numbering.original.get(k) {
+                    let range = dampers.range(v as usize);
+                    others.extend(dampers.neighbors[range].iter().map(|&j| internal(j)));
+                }
+                offsets.push(others.len() as u32);
+            }
+            Dampers {
+                offsets,
+                others,
+                damping: model.bending_damping as f32,
+            }
+        });
         Some(Self {
             constant,
             drags,
             wind,
+            dampers,
             inverse_dt: (1.0 / dt) as f32,
         })
     }
@@ -137,29 +173,33 @@ impl ExternalForces {
                     };
                 });
             let wind = &*wind;
-            let [ox, oy, oz] = out.axes_mut();
-            ox.par_iter_mut()
-                .zip(oy.par_iter_mut())
-                .zip(oz.par_iter_mut())
-                .enumerate()
-                .for_each(|(block, ((bx, by), bz))| {
-                    for lane in 0..LANES {
-                        let v = block * LANES + lane;
-                        let range =
-                            wind.vertex_offsets[v] as usize..wind.vertex_offsets[v + 1] as usize;
-                        for &t in &wind.vertex_triangles[range] {
-                            let f = wind.triangle_force[t as usize];
-                            bx[lane] += f.x;
-                            by[lane] += f.y;
-                            bz[lane] += f.z;
-                        }
-                    }
-                });
+            add_per_vertex(out, |v, sum| {
+                let range = wind.vertex_offsets[v] as usize..wind.vertex_offsets[v + 1] as usize;
+                for &t in &wind.vertex_triangles[range] {
+                    *sum += wind.triangle_force[t as usize];
+                }
+            });
+        }
+        if let Some(dampers) = &self.dampers {
+            let inverse_dt = self.inverse_dt;
+            add_per_vertex(out, |v, sum| {
+                let (x, d) = (Vec3::from(current.get(v)), Vec3::from(delta.get(v)));
+                let range = dampers.offsets[v] as usize..dampers.offsets[v + 1] as usize;
+                for &j in &dampers.others[range] {
+                    let u = (x - Vec3::from(current.get(j as usize))).normalize_or_zero();
+                    let rate = (d - Vec3::from(delta.get(j as usize))) * inverse_dt;
+                    *sum -= dampers.damping * rate.dot(u) * u;
+                }
+            });
         }
     }
 
     pub fn bytes(&self) -> usize {
         self.constant.bytes()
+            + self.dampers.as_ref().map_or(0, |d| {
+                std::mem::size_of_val(d.offsets.as_slice())
+                    + std::mem::size_of_val(d.others.as_slice())
+            })
             + self.wind.as_ref().map_or(0, |w| {
                 std::mem::size_of_val(w.triangles.as_slice())
                     + std::mem::size_of_val(w.vertex_offsets.as_slice())
@@ -167,4 +207,21 @@ impl ExternalForces {
                     + std::mem::size_of_val(w.triangle_force.as_slice())
             })
     }
+}
+
+/// Lets `add(vertex, sum)` add its forces to each vertex's entry of `out`, one after another in
+/// its own order (so the sums do not depend on the thread count), in parallel over blocks.
+fn add_per_vertex(out: &mut Soa, add: impl Fn(usize, &mut Vec3) + Sync) {
+    let [ox, oy, oz] = out.axes_mut();
+    ox.par_iter_mut()
+        .zip(oy.par_iter_mut())
+        .zip(oz.par_iter_mut())
+        .enumerate()
+        .for_each(|(block, ((bx, by), bz))| {
+            for lane in 0..LANES {
+                let mut sum = Vec3::new(bx[lane], by[lane], bz[lane]);
+                add(block * LANES + lane, &mut sum);
+                [bx[lane], by[lane], bz[lane]] = sum.to_array();
+            }
+        });
 }

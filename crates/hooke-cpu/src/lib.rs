@@ -200,6 +200,8 @@ impl CpuSolver {
             steps_taken: 0,
         };
         solver.set_integrator();
+        // The model's dampers act before any control is given.
+        solver.set_external_forces();
         solver.write_state(&State::at_rest(model.initial_positions.clone()));
         Ok(solver)
     }
@@ -342,6 +344,9 @@ impl CpuSolver {
         if !newly.is_empty() {
             self.tears.mark(&newly);
             self.build_tables();
+            if self.model.bending_damping > 0.0 {
+                self.set_external_forces();
+            }
         }
     }
 
@@ -449,6 +454,7 @@ impl CpuSolver {
             &self.numbering,
             &self.control,
             self.material.dt,
+            self.tears.flags(),
         );
         if self.external.is_some() && self.extra_forces.blocks() != self.numbering.slice_count() {
             self.extra_forces = Soa::zeros(self.numbering.slice_count());
@@ -688,6 +694,7 @@ impl Solver for CpuSolver {
         if self.tears.list() != snapshot.broken_springs {
             self.tears.restore(&snapshot.broken_springs)?;
             self.build_tables();
+            self.set_external_forces();
         }
         self.write_state(&snapshot.state);
         collide::restore_balls(&mut self.colliders, &snapshot.colliders);

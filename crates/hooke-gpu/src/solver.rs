@@ -32,7 +32,7 @@ use crate::kernels::force_springs::ForceSprings;
 use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
-use crate::kernels::tear::Tear;
+use crate::kernels::tear::{self, Tear};
 use crate::kernels::tick::Tick;
 use crate::layout::GpuStatus;
 use crate::methods::{Accumulation, GpuMemory, GpuMethod};
@@ -67,6 +67,8 @@ pub struct GpuSolver {
     /// Per-vertex spring forces (scratch of the force pass or the accumulation).
     forces: wgpu::Buffer,
     external: External,
+    /// Per spring, 1 once torn: when springs can break or dampers must know (see `tear`).
+    broken: Option<wgpu::Buffer>,
     /// Springs breaking (when the model tears, or a restored snapshot has torn springs).
     tear: Option<Tear>,
     force: Forces,
@@ -174,7 +176,10 @@ impl GpuSolver {
                 }
             }
         };
-        let external = External::new(ctx, &gpu_model, &state)?;
+        // The flags exist when springs can break, or dampers must know which did.
+        let broken = (model.tearing.is_some() || model.bending_damping > 0.0)
+            .then(|| tear::broken_flags(ctx, model.spring_count()));
+        let external = External::new(ctx, &gpu_model, &state, broken.as_ref())?;
         let integrate = Integrate::new(ctx, &gpu_model, &state, &forces, &external.extra_forces)?;
         let collide = Collide::new(ctx, &gpu_model, &state)?;
         let balls = match &collide {
@@ -187,9 +192,11 @@ impl GpuSolver {
             None => None,
         };
         let tick = Tick::new(ctx, &state)?;
-        let tear = match &model.tearing {
-            Some(tearing) => Some(Tear::new(ctx, &gpu_model, &state, tearing)?),
-            None => None,
+        let tear = match (&model.tearing, &broken) {
+            (Some(tearing), Some(broken)) => {
+                Some(Tear::new(ctx, &gpu_model, &state, tearing, broken)?)
+            }
+            _ => None,
         };
         let timestamps = ctx.has(wgpu::Features::TIMESTAMP_QUERY).then(|| {
             let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
@@ -205,9 +212,13 @@ impl GpuSolver {
             });
             (set, resolved)
         });
+        // The model's dampers act before any control is given.
+        let mut gpu_model = gpu_model;
+        gpu_model.uniforms.has_extra = u32::from(external.damps());
         gpu_model.write_uniforms(ctx);
         state.write(ctx, &State::at_rest(model.initial_positions.clone()));
         let solver = Self {
+            broken,
             model: gpu_model,
             state,
             forces,
@@ -622,7 +633,11 @@ impl Solver for GpuSolver {
             let never = Tearing {
                 max_stretch: f64::INFINITY,
             };
-            let tear = Tear::new(&self.context, &self.model, &self.state, &never);
+            let context = &self.context;
+            let flags = self
+                .broken
+                .get_or_insert_with(|| tear::broken_flags(context, spring_count));
+            let tear = Tear::new(context, &self.model, &self.state, &never, flags);
             self.tear = Some(tear.map_err(device)?);
         }
         if let Some(tear) = &self.tear {

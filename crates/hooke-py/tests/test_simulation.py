@@ -248,6 +248,11 @@ def test_bending_springs_join_the_far_corners_of_triangle_pairs() -> None:
     assert build().bending_spring_count == 0
     with pytest.raises(hooke.InputError, match=r"bending\.stiffness: must be a positive number"):
         build(bending={"stiffness": -1.0})
+    # Their own dampers count against the stable time step.
+    damped = build(bending={"stiffness": 5.0, "damping": 0.01})
+    assert damped.stable_dt()[0] < bent.stable_dt()[0]
+    with pytest.raises(hooke.InputError, match=r"bending\.damping: must be zero or positive"):
+        build(bending={"stiffness": 5.0, "damping": -1.0})
 
 
 def test_a_vertex_pinned_while_running_stays_there_until_unpinned() -> None:

@@ -93,6 +93,10 @@ pub struct LiveSimulation {
     pub bending_scale: f64,
     /// The bending scale of the running model.
     running_bending_scale: f64,
+    /// Each bending spring's own damping, N s/m.
+    pub bending_damping: f64,
+    /// The bending damping of the running model.
+    running_bending_damping: f64,
     /// Springs break past this many times their rest length (used when the scene tears).
     pub max_stretch: f64,
     /// The tearing threshold of the running model.
@@ -181,6 +185,8 @@ impl LiveSimulation {
             stiffness_scale: 1.0,
             bending_scale: 1.0,
             running_bending_scale: 1.0,
+            bending_damping: scene.model.bending_damping,
+            running_bending_damping: scene.model.bending_damping,
             max_stretch: scene_max_stretch(&scene),
             running_max_stretch: scene_max_stretch(&scene),
             pins_changed: 0,
@@ -299,20 +305,28 @@ impl LiveSimulation {
     /// Sends what the controls changed to the engine, in place: the material, the control,
     /// the self-collision set-up (only that builds anything: the GPU's self-collision pass).
     pub fn apply(&mut self) {
-        if (self.bending_scale, self.max_stretch)
-            != (self.running_bending_scale, self.running_max_stretch)
-        {
-            // Other stiffnesses or another tearing threshold: the solver is built anew,
+        let wanted = (self.bending_scale, self.bending_damping, self.max_stretch);
+        let running = (
+            self.running_bending_scale,
+            self.running_bending_damping,
+            self.running_max_stretch,
+        );
+        if wanted != running {
+            // Other stiffnesses, dampers or tearing threshold: the solver is built anew,
             // carrying the run on (the pins added since the start, the springs torn so far).
             let mut model = self.scene.model.with_bending_scale(self.bending_scale);
             model.pinned.clone_from(&self.model().pinned);
+            model.bending_damping = self.bending_damping;
             if model.tearing.is_some() {
                 model.tearing = Some(Tearing {
                     max_stretch: self.max_stretch,
                 });
             }
-            self.running_bending_scale = self.bending_scale;
-            self.running_max_stretch = self.max_stretch;
+            (
+                self.running_bending_scale,
+                self.running_bending_damping,
+                self.running_max_stretch,
+            ) = wanted;
             if let Err(error) = self.engine.set_model(model) {
                 self.message = Some(error.to_string());
                 self.paused = true;
@@ -415,6 +429,7 @@ impl LiveSimulation {
                 self.engine = engine;
                 self.gpu_broken_springs = 0;
                 self.running_bending_scale = 1.0;
+                self.running_bending_damping = self.scene.model.bending_damping;
                 self.running_max_stretch = scene_max_stretch(&self.scene);
                 self.pins_were_changed();
                 self.message = None;

@@ -71,6 +71,8 @@ struct Info {
     springs: usize,
     /// Of `springs`, those joining the far vertices of triangle pairs (`[bending]`).
     bending_springs: usize,
+    /// Each bending spring's own damping, N s/m.
+    bending_damping: f64,
     pinned: usize,
     total_mass_kg: f64,
     /// `valence_histogram[v]` vertices have v springs.
@@ -184,6 +186,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         triangles: model.triangles.len(),
         springs: n_e,
         bending_springs: model.bending_springs,
+        bending_damping: model.bending_damping,
         pinned: model.pinned.iter().filter(|p| **p).count(),
         total_mass_kg: model.total_mass(),
         mean_valence: 2.0 * n_e as f64 / n_v as f64,
@@ -214,9 +217,10 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
 
 fn print_info(info: &Info) {
     println!("scene           {}", info.scene);
-    let bending = match info.bending_springs {
-        0 => String::new(),
-        n => format!(" ({n} of them bending)"),
+    let bending = match (info.bending_springs, info.bending_damping) {
+        (0, _) => String::new(),
+        (n, 0.0) => format!(" ({n} of them bending)"),
+        (n, c) => format!(" ({n} of them bending, damped {c} N s/m)"),
     };
     println!(
         "mesh            {} vertices, {} triangles, {} springs{bending}, {} pinned",

@@ -73,6 +73,11 @@ pub fn show(
                         .text("bending x (0: off)"),
                 );
                 changed |= slider.drag_stopped() || (slider.changed() && !slider.dragged());
+                let slider = ui.add(
+                    egui::Slider::new(&mut simulation.bending_damping, 0.0..=0.05)
+                        .text("bending damping (N s/m)"),
+                );
+                changed |= slider.drag_stopped() || (slider.changed() && !slider.dragged());
             } else {
                 ui.label("no bending springs (add [bending] to the scene)");
             }

@@ -135,6 +135,14 @@ impl SceneFile {
                     material.rest_length_scale,
                 )
                 .map_err(|e| invalid("bending", e.to_string()))?;
+            let damping = bending.damping;
+            require(damping >= 0.0 && damping.is_finite(), || {
+                invalid(
+                    "bending.damping",
+                    format!("must be zero or positive, found {damping}"),
+                )
+            })?;
+            model.bending_damping = damping;
         }
         if let Some(factors) = stiffness_factors {
             for (k, [a, b]) in model.stiffnesses.iter_mut().zip(&model.spring_ends) {

@@ -93,6 +93,9 @@ pub struct BendingSection {
     pub enabled: bool,
     /// Each bending spring's stiffness, N/m (times the material's stiffness maps).
     pub stiffness: f64,
+    /// Each bending spring's own damping, N s/m: against the rate its length changes.
+    #[serde(default)]
+    pub damping: f64,
 }
 
 /// Approximate self-collision by binning (see `hooke_core::selfcollide`).

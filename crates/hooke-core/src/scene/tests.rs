@@ -379,6 +379,16 @@ fn bending_adds_a_spring_across_every_interior_edge() {
             .to_string(),
         "test.toml: bending.stiffness: must be a positive number, found 0"
     );
+    // Their own dampers: in the model, and counted by the stability bound.
+    let damped = build(&format!("{text}damping = 0.05\n")).expect("builds");
+    assert_eq!(damped.model.bending_damping, 0.05);
+    assert!(damped.max_stable_dt < bent.max_stable_dt);
+    assert_eq!(
+        build(&format!("{text}damping = -1\n"))
+            .unwrap_err()
+            .to_string(),
+        "test.toml: bending.damping: must be zero or positive, found -1"
+    );
 }
 
 #[test]

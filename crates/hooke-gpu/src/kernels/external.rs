@@ -12,7 +12,7 @@ use glam::DVec3;
 use hooke_core::{Control, Model};
 
 use crate::context::{GpuContext, GpuError};
-use crate::gpu::{Kernel, zeroed};
+use crate::gpu::{Kernel, storage, zeroed};
 use crate::model::{GpuModel, vec4s};
 use crate::state::GpuState;
 
@@ -38,12 +38,31 @@ pub struct External {
     touched: Vec<u32>,
     triangle_count: u32,
     wind_on: bool,
+    /// True if the model has dampers (they act whatever the control).
+    damps: bool,
     bytes: u64,
 }
 
 impl External {
-    pub fn new(context: &GpuContext, model: &GpuModel, state: &GpuState) -> Result<Self, GpuError> {
+    /// The passes of `model`; a torn spring's damper stops when `broken` (the per-spring flags,
+    /// when springs can break) says so.
+    pub fn new(
+        context: &GpuContext,
+        model: &GpuModel,
+        state: &GpuState,
+        broken: Option<&wgpu::Buffer>,
+    ) -> Result<Self, GpuError> {
         let n = model.model.vertex_count();
+        let none = wgpu::BufferUsages::empty();
+        let dampers = model.model.dampers(&[]);
+        let mut damper_words = vec![(model.model.bending_damping as f32).to_bits()];
+        damper_words.extend(&dampers.offsets);
+        for (other, spring) in dampers.neighbors.iter().zip(&dampers.springs) {
+            damper_words.extend([*other, *spring]);
+        }
+        let damper_buffer = storage(context, "dampers", &damper_words, none);
+        let never_broken = storage(context, "no broken springs", &[0u32; 4], none);
+        let broken = broken.unwrap_or(&never_broken);
         let extra_forces = zeroed(
             context,
             "extra forces",
@@ -77,8 +96,11 @@ impl External {
                     (1, state.positions[current].as_entire_binding()),
                     (3, point_and_drag.as_entire_binding()),
                     (6, triangle_forces.as_entire_binding()),
+                    (2, state.deltas.as_entire_binding()),
                     (7, model.vertex_triangles.as_entire_binding()),
                     (8, extra_forces.as_entire_binding()),
+                    (9, damper_buffer.as_entire_binding()),
+                    (10, broken.as_entire_binding()),
                 ]
             },
         )?;
@@ -108,8 +130,9 @@ impl External {
             touched: Vec::new(),
             triangle_count: triangle_count as u32,
             wind_on: false,
-            // Point forces and drags, wind triangle forces, the extra forces themselves.
-            bytes: 2 * vec4s(n) + vec4s(triangle_count) + vec4s(n),
+            damps: !dampers.neighbors.is_empty(),
+            // Point forces and drags, wind triangle forces, the extra forces themselves, dampers.
+            bytes: 2 * vec4s(n) + vec4s(triangle_count) + vec4s(n) + damper_buffer.size(),
         })
     }
 
@@ -118,8 +141,8 @@ impl External {
         self.bytes
     }
 
-    /// Writes `control` into the buffers. Returns whether the control puts forces on the cloth
-    /// (`has_extra`) and how many triangles wind acts on (`triangle_count`), for the uniforms.
+    /// Writes `control` into the buffers. Returns whether the control or the dampers put forces
+    /// on the cloth (`has_extra`) and how many triangles wind acts on (`triangle_count`), for the uniforms.
     pub fn write(&mut self, context: &GpuContext, model: &Model, control: &Control) -> (bool, u32) {
         let entries = entries_of(control);
         let stale: Vec<u32> = self
@@ -161,7 +184,12 @@ impl External {
         queue.write_buffer(&self.wind_uniform, 0, bytemuck::cast_slice(&wind));
         self.wind_on = control.wind.is_some();
         let triangles = if self.wind_on { self.triangle_count } else { 0 };
-        (control.acts_on_cloth(), triangles)
+        (control.acts_on_cloth() || self.damps, triangles)
+    }
+
+    /// True if the model's dampers act (so the pass runs even without a control).
+    pub fn damps(&self) -> bool {
+        self.damps
     }
 
     /// True if the control has wind (then [`External::encode_wind`] runs before the sums).
@@ -221,7 +249,7 @@ mod tests {
             .expect("model");
         let gpu_state = GpuState::new(&context, n);
         gpu_state.write(&context, &state);
-        let mut external = External::new(&context, &model, &gpu_state).expect("kernel");
+        let mut external = External::new(&context, &model, &gpu_state, None).expect("kernel");
         let first = Control {
             wind: Some(Wind {
                 velocity: DVec3::new(3.0, 1.0, -2.0),

@@ -12,6 +12,12 @@ use crate::layout::GpuTearTest;
 use crate::model::GpuModel;
 use crate::state::GpuState;
 
+/// The per-spring broken flags (`u32`, 1 once broken) of a model of `spring_count` springs.
+pub fn broken_flags(context: &GpuContext, spring_count: usize) -> wgpu::Buffer {
+    let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+    zeroed(context, "broken springs", 4 * spring_count as u64, copy)
+}
+
 #[derive(Debug)]
 pub struct Tear {
     pub kernel: Kernel,
@@ -24,12 +30,14 @@ pub struct Tear {
 }
 
 impl Tear {
-    /// The tear pass of `model` under `tearing`.
+    /// The tear pass of `model` under `tearing`, setting the per-spring flags in `broken`
+    /// ([`broken_flags`]).
     pub fn new(
         context: &GpuContext,
         model: &GpuModel,
         state: &GpuState,
         tearing: &Tearing,
+        broken: &wgpu::Buffer,
     ) -> Result<Self, GpuError> {
         let cpu = &model.model;
         let words = model.stiffness_words();
@@ -48,7 +56,7 @@ impl Tear {
             .collect();
         let spring_count = cpu.spring_count();
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let broken = zeroed(context, "broken springs", 4 * spring_count as u64, copy);
+        let broken = broken.clone();
         let count = zeroed(context, "broken spring count", 16, copy);
         let none = wgpu::BufferUsages::empty();
         let tests = storage(context, "tear tests", &tests, none);
