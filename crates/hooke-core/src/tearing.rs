@@ -47,6 +47,8 @@ pub struct TearRule {
     first_bending: usize,
     /// Per bending spring, the edge springs of its two triangles.
     hinges: Vec<[u32; 5]>,
+    /// Per edge spring, the bending springs whose hinges hold it (CSR: `edge_hinges.range(e)`).
+    edge_hinges: crate::Adjacency,
 }
 
 impl TearRule {
@@ -60,24 +62,51 @@ impl TearRule {
                 }
             })
             .collect();
+        let first_bending = model.first_bending_spring();
+        // Each hinge edge paired with its bending spring, as a two-ended "spring" whose far
+        // end is the bending spring's index: the CSR lists an edge's hinges in order.
+        let pairs: Vec<[u32; 2]> = model
+            .bending_hinges
+            .iter()
+            .enumerate()
+            .flat_map(|(k, hinge)| {
+                let bending = (first_bending + k) as u32;
+                hinge.iter().map(move |&e| [e, bending])
+            })
+            .collect();
+        let edge_hinges = crate::Adjacency::from_springs(model.spring_count(), &pairs);
         Self {
             tests,
-            first_bending: model.first_bending_spring(),
+            first_bending,
             hinges: model.bending_hinges.clone(),
+            edge_hinges,
         }
     }
 
-    /// True if spring `s` breaks with its vertices at `position`s.
+    /// True if edge spring `e` (one of the first [`TearRule::first_bending`]) is past its limit
+    /// with its vertices at `position`s.
     #[inline]
-    pub fn breaks(&self, s: usize, position: impl Fn(u32) -> Vec3) -> bool {
-        let edge = |e: usize| {
-            let test = &self.tests[e];
-            test.breaks(position(test.ends[0]), position(test.ends[1]))
-        };
-        match s.checked_sub(self.first_bending) {
-            None => edge(s),
-            Some(k) => self.hinges[k].iter().any(|&e| edge(e as usize)),
-        }
+    pub fn edge_breaks(&self, e: usize, position: impl Fn(u32) -> Vec3) -> bool {
+        let test = &self.tests[e];
+        test.breaks(position(test.ends[0]), position(test.ends[1]))
+    }
+
+    /// The springs that break, in order, given the edge springs that pass their test
+    /// (`passing`, from [`TearRule::edge_breaks`] on the same positions), leaving out those
+    /// already `broken`: those edges, and every bending spring with one of them in its hinge.
+    /// The work is the passing edges' hinges, not every spring.
+    pub fn breaking(&self, passing: &[u32], broken: &[bool]) -> Vec<u32> {
+        let mut springs: Vec<u32> = passing
+            .iter()
+            .flat_map(|&e| {
+                let hinges = self.edge_hinges.range(e as usize);
+                std::iter::once(e).chain(self.edge_hinges.neighbors[hinges].iter().copied())
+            })
+            .filter(|&s| !broken[s as usize])
+            .collect();
+        springs.sort_unstable();
+        springs.dedup();
+        springs
     }
 
     /// Per spring, its test (a bending spring's is its own ends', unused).
@@ -169,9 +198,10 @@ impl Tears {
 
 /// The springs that are not yet `broken` and that `rule` breaks at `position`s, in order.
 pub fn newly_broken(rule: &TearRule, broken: &[bool], position: impl Fn(u32) -> Vec3) -> Vec<u32> {
-    (0..rule.spring_count() as u32)
-        .filter(|&s| !broken[s as usize] && rule.breaks(s as usize, &position))
-        .collect()
+    let passing: Vec<u32> = (0..rule.first_bending() as u32)
+        .filter(|&e| rule.edge_breaks(e as usize, &position))
+        .collect();
+    rule.breaking(&passing, broken)
 }
 
 /// The indices of the `true` flags, in order: a state's broken springs as a list.

@@ -49,6 +49,18 @@ impl Stiffness {
         &self.rows[row * self.stride]
     }
 
+    /// Sets the stiffness of `entries` to zero (springs that tore) in a table of `entry_count`
+    /// entries; a uniform stiffness becomes one per entry first.
+    pub fn zero_entries(&mut self, entries: impl Iterator<Item = usize>, entry_count: usize) {
+        if self.stride == 0 {
+            self.rows = vec![self.rows[0]; entry_count.div_ceil(LANES)];
+            self.stride = 1;
+        }
+        for entry in entries {
+            self.rows[entry / LANES][entry % LANES] = 0.0;
+        }
+    }
+
     /// Bytes streamed per step (a uniform value stays in L1).
     pub fn bytes(&self) -> usize {
         self.stride * std::mem::size_of_val(self.rows.as_slice())

@@ -38,8 +38,8 @@ use kernels::{
     VertexChunk,
 };
 use lanes::Lanes;
-use layout::{Numbering, VertexOrder};
-use tables::{build_topology, into_blocks};
+use layout::{LANES, Numbering, VertexOrder};
+use tables::{build_topology, into_blocks, stiffness_entries};
 
 /// Which of the paper's data structures computes the spring forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -152,6 +152,10 @@ pub struct CpuSolver {
     slice_pushes: Vec<DVec3>,
     /// Broken springs (their stiffness is zero in `topology`) and the tests that break more.
     tears: Tears,
+    /// Scratch of `tear`: the current positions as one `Vec3` each.
+    tear_positions: Vec<Vec3>,
+    /// Where each spring's stiffness sits in `topology` (made when a spring first tears).
+    stiffness_entries: Option<Vec<[u32; 2]>>,
     steps_taken: u64,
 }
 
@@ -196,6 +200,8 @@ impl CpuSolver {
             colliders: model.collision.colliders.clone(),
             slice_pushes: Vec::new(),
             tears: Tears::new(model),
+            tear_positions: Vec::new(),
+            stiffness_entries: None,
             model: model.clone(),
             steps_taken: 0,
         };
@@ -334,18 +340,53 @@ impl CpuSolver {
         let Some(rule) = self.tears.rule() else {
             return;
         };
-        let (broken, current, internal) =
-            (self.tears.flags(), &self.current, &self.numbering.internal);
-        let position = |v: u32| Vec3::from(current.get(internal[v as usize] as usize));
-        let newly: Vec<u32> = (0..rule.spring_count() as u32)
+        // Positions as one vec3 each (internal order): an edge test reads 12 contiguous bytes
+        // per end instead of one float from each axis.
+        let [xs, ys, zs] = self.current.axes();
+        let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
+        self.tear_positions.clear();
+        self.tear_positions.par_extend(
+            (0..xs.len())
+                .into_par_iter()
+                .map(|k| Vec3::new(xs[k], ys[k], zs[k])),
+        );
+        let (positions, internal) = (&self.tear_positions, &self.numbering.internal);
+        let position = |v: u32| positions[internal[v as usize] as usize];
+        // `tearing::newly_broken` with the edges tested in parallel; what breaks follows from
+        // the few that pass.
+        let passing: Vec<u32> = (0..rule.first_bending() as u32)
             .into_par_iter()
-            .filter(|&s| !broken[s as usize] && rule.breaks(s as usize, position))
+            .filter(|&e| rule.edge_breaks(e as usize, position))
             .collect();
+        let newly = rule.breaking(&passing, self.tears.flags());
         if !newly.is_empty() {
             self.tears.mark(&newly);
-            self.build_tables();
+            self.zero_stiffness(&newly);
             if self.model.bending_damping > 0.0 {
                 self.set_external_forces();
+            }
+        }
+    }
+
+    /// Zeroes the stiffness of `springs` in the force tables, in place: the tables
+    /// [`CpuSolver::build_tables`] would build with them torn, without building anything.
+    fn zero_stiffness(&mut self, springs: &[u32]) {
+        let entries = self.stiffness_entries.get_or_insert_with(|| {
+            stiffness_entries(&self.model, &self.numbering, self.options.method)
+        });
+        let torn = springs
+            .iter()
+            .flat_map(|&s| entries[s as usize])
+            .filter(|&e| e != u32::MAX)
+            .map(|e| e as usize);
+        match &mut self.topology {
+            Topology::Gather(table) => {
+                let count = table.rest_length.len() * LANES;
+                table.stiffness.zero_entries(torn, count);
+            }
+            Topology::Scatter { springs, .. } => {
+                let count = springs.rest_length.len() * LANES;
+                springs.stiffness.zero_entries(torn, count);
             }
         }
     }

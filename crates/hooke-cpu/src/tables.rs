@@ -115,10 +115,9 @@ fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
     order
 }
 
-pub(crate) fn scatter_tables(
-    model: &Model,
-    numbering: &Numbering,
-) -> (SpringTable, IncidenceTable) {
+/// The springs' ends in internal numbering (lower first), the order the scatter force pass
+/// visits them in, and each model spring's place in it.
+fn scatter_order(model: &Model, numbering: &Numbering) -> (Vec<[u32; 2]>, Vec<u32>, Vec<u32>) {
     let ends: Vec<[u32; 2]> = model
         .spring_ends
         .iter()
@@ -127,12 +126,48 @@ pub(crate) fn scatter_tables(
             [a.min(b), a.max(b)]
         })
         .collect();
-    // `slot_of[s]` is model spring s's place in the force pass and force buffer.
     let order = spring_order(&ends);
     let mut slot_of = vec![0u32; model.spring_count()];
     for (slot, &s) in order.iter().enumerate() {
         slot_of[s as usize] = slot as u32;
     }
+    (ends, order, slot_of)
+}
+
+/// Per model spring, the entries holding its stiffness in `method`'s table: gather has one at
+/// each end, scatter one slot (the other `u32::MAX`). What tearing zeroes in place.
+pub(crate) fn stiffness_entries(
+    model: &Model,
+    numbering: &Numbering,
+    method: Method,
+) -> Vec<[u32; 2]> {
+    let mut entries = vec![[u32::MAX; 2]; model.spring_count()];
+    match method {
+        Method::Gather => {
+            let springs = &model.adjacency.springs;
+            let (_, layout) = Slices::build(model, numbering, |_, e| springs[e], |_| u32::MAX);
+            for (entry, &s) in layout.iter().enumerate() {
+                if let Some(ends) = entries.get_mut(s as usize) {
+                    ends[usize::from(ends[0] != u32::MAX)] = entry as u32;
+                }
+            }
+        }
+        Method::Scatter => {
+            let (_, _, slot_of) = scatter_order(model, numbering);
+            for (ends, slot) in entries.iter_mut().zip(slot_of) {
+                ends[0] = slot;
+            }
+        }
+    }
+    entries
+}
+
+pub(crate) fn scatter_tables(
+    model: &Model,
+    numbering: &Numbering,
+) -> (SpringTable, IncidenceTable) {
+    // `slot_of[s]` is model spring s's place in the force pass and force buffer.
+    let (ends, order, slot_of) = scatter_order(model, numbering);
     let rows = model.spring_count().div_ceil(LANES);
     let zero_slot = (rows * LANES) as u32;
     let end_rows = |end: usize| {

@@ -271,8 +271,10 @@ fn bending_springs_own_damping_settles_a_folded_sheet_as_the_reference_does() {
         let state = run(&damped, choice, &context, seconds, Some(&start));
         let error = relative_l2(&state.positions, &reference.positions);
         let energy = energy_left(&damped, &state);
+        // The sheet rings undamped but for the dampers: float atomics' order, different each
+        // run, moves atomic-f32 up to 3% off; a missing damper puts it 30% off.
         assert!(
-            error < 2e-2 && (energy - left).abs() < 0.02,
+            error < 5e-2 && (energy - left).abs() < 0.02,
             "{}: error {error}, energy left {energy} (reference {left})",
             choice.name()
         );

@@ -405,6 +405,10 @@ impl Viewer {
             if let Some(script) = &self.drag_script {
                 eprintln!("{}", script.report());
             }
+            if self.simulation.model().tearing.is_some() {
+                // As the panel shows it: on the GPU, the count last read back without waiting.
+                eprintln!("viewer: {} springs torn", self.simulation.broken_springs());
+            }
         }
         if let (Some((buffer, padded_row)), Some(path)) = (screenshot, &self.screenshot) {
             self.save_screenshot(&buffer, padded_row, path)?;
