@@ -261,12 +261,7 @@ impl Model {
         rest_length_scale: f64,
     ) -> Result<(), ModelError> {
         let stiffness = positive("bending.stiffness", stiffness)?;
-        let edges: std::collections::HashMap<[u32; 2], u32> = self
-            .spring_ends
-            .iter()
-            .enumerate()
-            .map(|(s, [a, b])| ([*a.min(b), *a.max(b)], s as u32))
-            .collect();
+        let edges = self.edge_springs();
         let edge = |p: u32, q: u32| {
             let ends = [p.min(q), p.max(q)];
             edges
@@ -293,6 +288,16 @@ impl Model {
         self.bending_springs += pairs.len();
         self.adjacency = Adjacency::from_springs(self.vertex_count(), &self.spring_ends);
         Ok(())
+    }
+
+    /// The edge springs (bending springs aside) by their ends, lower index first.
+    pub fn edge_springs(&self) -> std::collections::HashMap<[u32; 2], u32> {
+        self.spring_ends
+            .iter()
+            .enumerate()
+            .filter(|(s, _)| !self.is_bending(*s))
+            .map(|(s, [a, b])| ([*a.min(b), *a.max(b)], s as u32))
+            .collect()
     }
 
     /// The edge springs of the two triangles bending spring `spring` joins (the crossed edge

@@ -228,13 +228,7 @@ pub fn broken_flags(list: &[u32], spring_count: usize) -> Result<Vec<bool>, SimE
 
 /// Per triangle, the springs along its three edges (what drawing checks for a broken edge).
 pub fn triangle_edge_springs(model: &Model) -> Vec<[u32; 3]> {
-    let index: std::collections::HashMap<[u32; 2], u32> = model
-        .spring_ends
-        .iter()
-        .enumerate()
-        .filter(|(s, _)| !model.is_bending(*s))
-        .map(|(s, [a, b])| ([*a.min(b), *a.max(b)], s as u32))
-        .collect();
+    let index = model.edge_springs();
     model
         .triangles
         .iter()

@@ -221,6 +221,11 @@ impl CpuSolver {
         self.tears.flags()
     }
 
+    /// How many springs have broken (kept as they break, not counted).
+    pub fn broken_count(&self) -> usize {
+        self.tears.count()
+    }
+
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
     }

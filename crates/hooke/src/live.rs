@@ -444,7 +444,7 @@ impl LiveSimulation {
     /// the GPU (which never waits for it).
     pub fn broken_springs(&self) -> usize {
         match self.engine.cpu_solver() {
-            Some(cpu) => cpu.broken_flags().iter().filter(|b| **b).count(),
+            Some(cpu) => cpu.broken_count(),
             None => self.gpu_broken_springs,
         }
     }

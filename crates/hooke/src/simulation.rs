@@ -17,6 +17,7 @@ use hooke_core::{
     Solver, State, StiffnessModel, TimingSource,
 };
 use hooke_cpu::{CpuError, CpuMemory, CpuOptions, CpuSolver, Method};
+use hooke_gpu::gpu;
 use hooke_gpu::render::ClothBuffers;
 use hooke_gpu::wgpu;
 use hooke_gpu::{
@@ -497,7 +498,7 @@ impl Simulation {
                 if let Some(context) = gpu.as_deref() {
                     uploads.positions(context, &state.positions);
                     if self.model.tearing.is_some() {
-                        uploads.broken(context, solver.broken_flags());
+                        uploads.broken(context, solver);
                     }
                 }
                 Ok(())
@@ -575,7 +576,13 @@ impl Uploads {
     /// Copies positions into the draw buffer, creating it on first use.
     fn positions(&mut self, context: &GpuContext, positions: &[DVec3]) {
         let buffer = self.positions.get_or_insert_with(|| {
-            upload_buffer(context, "cpu positions upload", 16 * positions.len() as u64)
+            let bytes = 16 * positions.len() as u64;
+            gpu::zeroed(
+                context,
+                "cpu positions upload",
+                bytes,
+                wgpu::BufferUsages::COPY_DST,
+            )
         });
         context.queue.write_buffer(
             buffer,
@@ -584,16 +591,18 @@ impl Uploads {
         );
     }
 
-    /// Copies the broken flags (one `u32` per spring) when more have broken since the last
-    /// upload (springs only ever break while stepping).
-    fn broken(&mut self, context: &GpuContext, flags: &[bool]) {
-        let count = flags.iter().filter(|b| **b).count();
+    /// Copies the broken flags (one `u32` per spring) of `solver` when more have broken since
+    /// the last upload (springs only ever break while stepping).
+    fn broken(&mut self, context: &GpuContext, solver: &CpuSolver) {
+        let count = solver.broken_count();
         if self.broken.as_ref().is_some_and(|(_, sent)| *sent == count) {
             return;
         }
+        let flags = solver.broken_flags();
         let (buffer, sent) = self.broken.get_or_insert_with(|| {
-            let buffer =
-                upload_buffer(context, "cpu broken springs upload", 4 * flags.len() as u64);
+            let bytes = 4 * flags.len() as u64;
+            let usage = wgpu::BufferUsages::COPY_DST;
+            let buffer = gpu::zeroed(context, "cpu broken springs upload", bytes, usage);
             (buffer, usize::MAX)
         });
         let words: Vec<u32> = flags.iter().map(|b| u32::from(*b)).collect();
@@ -602,15 +611,6 @@ impl Uploads {
             .write_buffer(buffer, 0, bytemuck::cast_slice(&words));
         *sent = count;
     }
-}
-
-fn upload_buffer(context: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-    context.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(16),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
 }
 
 fn build(
