@@ -20,7 +20,8 @@ impl CpuSolver {
             .iter()
             .map(|&k| Vec3::from_array(self.next.get(k as usize)))
             .collect();
-        let moves = selfcollide::resolve(
+        let moves = selfcollide::resolve_with(
+            &mut self.binning,
             &mut positions,
             &self.inverse_masses,
             &self.model.adjacency,

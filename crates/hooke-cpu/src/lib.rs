@@ -134,6 +134,8 @@ pub struct CpuSolver {
     material: Material,
     control: Control,
     self_collision: Option<SelfCollision>,
+    /// Self-collision's sort buffers, kept between steps.
+    binning: selfcollide::Binning,
     external: Option<ExternalForces>,
     extra_forces: Soa,
     /// Per-vertex net force, used only by the phase-separated step.
@@ -190,6 +192,7 @@ impl CpuSolver {
             material: *material,
             control: Control::default(),
             self_collision: model.collision.self_collision,
+            binning: selfcollide::Binning::default(),
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),

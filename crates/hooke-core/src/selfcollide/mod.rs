@@ -18,10 +18,15 @@
 //! distance test rejects them. Everything here is float32, the same arithmetic as the GPU's
 //! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
 
+mod binning;
+
 use std::collections::HashMap;
 
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
+
+pub use binning::Binning;
+use binning::{Entry, key_of, vertex_of};
 
 use crate::{Adjacency, Model};
 
@@ -120,9 +125,11 @@ pub fn inverse_masses(model: &Model) -> Vec<f32> {
 
 /// Stable sort of vertex indices by key: `(sorted keys, vertices in sorted order)`.
 pub fn sort_by_key(keys: &[u32]) -> (Vec<u32>, Vec<u32>) {
-    let mut pairs: Vec<(u32, u32)> = keys.iter().copied().zip(0..).collect();
-    radsort::sort_by_key(&mut pairs, |&(key, _)| key);
-    pairs.into_iter().unzip()
+    Binning::default()
+        .sort(keys.len(), 32, |v| keys[v])
+        .iter()
+        .map(|&entry| (key_of(entry), vertex_of(entry)))
+        .unzip()
 }
 
 /// True if a spring joins `a` and `b`.
@@ -131,27 +138,36 @@ pub fn joined(adjacency: &Adjacency, a: u32, b: u32) -> bool {
     adjacency.neighbors[row].contains(&b)
 }
 
-/// The vertices of one grid in sorted order.
-/// The sorted keys and the vertices in sorted order of grid `k`.
-fn sorted_for_grid(positions: &[Vec3], config: &SelfCollision, k: u32) -> (Vec<u32>, Vec<u32>) {
+/// The vertices of grid `k` in sorted order, with their keys.
+fn sorted_for_grid<'a>(
+    binning: &'a mut Binning,
+    positions: &[Vec3],
+    config: &SelfCollision,
+    k: u32,
+) -> &'a [Entry] {
     let inverse_cell = (1.0 / config.cell_size) as f32;
     let (offset, bits) = (config.grid_offset(k), key_bits(positions.len()));
-    let keys: Vec<u32> = positions
-        .par_iter()
-        .map(|&p| cell_key(cell_of(p, inverse_cell, offset), bits))
-        .collect();
-    sort_by_key(&keys)
+    binning.sort(positions.len(), bits, |v| {
+        cell_key(cell_of(positions[v], inverse_cell, offset), bits)
+    })
 }
 
 /// The window of sorted slot `j`: up to `window` slots on each side, nearest first, that
-/// hold the same key (the same cell, or one hashed alike); below `j`, then above.
-fn window_of(j: usize, window: u32, keys: &[u32]) -> impl Iterator<Item = usize> + '_ {
-    let (w, key) = (window as usize, keys[j]);
-    let below = (j.saturating_sub(w)..j)
-        .rev()
-        .take_while(move |&m| keys[m] == key);
-    let above = (j + 1..(j + w + 1).min(keys.len())).take_while(move |&m| keys[m] == key);
-    below.chain(above)
+/// hold the same key (the same cell, or one hashed alike); below `j`, then above. Yields the
+/// vertices.
+fn window_of(j: usize, window: u32, sorted: &[Entry]) -> impl Iterator<Item = u32> + '_ {
+    let (w, key) = (window as usize, key_of(sorted[j]));
+    let same = move |&m: &usize| key_of(sorted[m]) == key;
+    let below = (j.saturating_sub(w)..j).rev().take_while(same);
+    let above = (j + 1..(j + w + 1).min(sorted.len())).take_while(same);
+    below.chain(above).map(|m| vertex_of(sorted[m]))
+}
+
+/// True if sorted slot `j` shares its key with neither slot beside it (most vertices).
+fn alone(j: usize, sorted: &[Entry]) -> bool {
+    let key = key_of(sorted[j]);
+    (j == 0 || key_of(sorted[j - 1]) != key)
+        && sorted.get(j + 1).is_none_or(|&next| key_of(next) != key)
 }
 
 /// Resolves self-collisions in place: `K` passes, each moving the `positions` of vertices
@@ -165,31 +181,45 @@ pub fn resolve(
     adjacency: &Adjacency,
     config: &SelfCollision,
 ) -> Vec<(u32, Vec3)> {
+    resolve_with(
+        &mut Binning::default(),
+        positions,
+        weights,
+        adjacency,
+        config,
+    )
+}
+
+/// [`resolve`] with sort buffers kept by the caller from one step to the next.
+pub fn resolve_with(
+    binning: &mut Binning,
+    positions: &mut [Vec3],
+    weights: &[f32],
+    adjacency: &Adjacency,
+    config: &SelfCollision,
+) -> Vec<(u32, Vec3)> {
     let distance = config.distance as f32;
     let mut all_moves = Vec::new();
     for k in 0..config.grids {
-        let (keys, order) = sorted_for_grid(positions, config, k);
+        let sorted = sorted_for_grid(binning, positions, config, k);
         let current = &*positions;
         // Most vertices are alone in their cell: only those with a same-key neighbour in
         // sorted order are looked at, and only nonzero moves are kept.
-        let moves: Vec<(u32, Vec3)> = (0..order.len())
+        let moves: Vec<(u32, Vec3)> = (0..sorted.len())
             .into_par_iter()
             .filter_map(|j| {
                 // Checked before touching the vertex: its data sits at a random address.
-                let alone = (j == 0 || keys[j - 1] != keys[j])
-                    && keys.get(j + 1).is_none_or(|&next| next != keys[j]);
-                if alone {
+                if alone(j, sorted) {
                     return None;
                 }
-                let p = order[j];
+                let p = vertex_of(sorted[j]);
                 let wp = weights[p as usize];
                 if wp <= 0.0 {
                     return None;
                 }
                 let xp = current[p as usize];
                 let mut correction = Vec3::ZERO;
-                for m in window_of(j, config.window, &keys) {
-                    let q = order[m];
+                for q in window_of(j, config.window, sorted) {
                     let wq = weights[q as usize];
                     let pair = Pair {
                         p,
@@ -246,13 +276,14 @@ pub fn approximate_pairs(
     config: &SelfCollision,
 ) -> Vec<(u32, u32)> {
     let distance = config.distance as f32;
+    let mut binning = Binning::default();
     let mut pairs: Vec<(u32, u32)> = (0..config.grids)
         .flat_map(|k| {
-            let (keys, order) = sorted_for_grid(positions, config, k);
+            let sorted = sorted_for_grid(&mut binning, positions, config, k);
             let mut found = Vec::new();
-            for (j, &p) in order.iter().enumerate() {
-                for m in window_of(j, config.window, &keys) {
-                    let q = order[m];
+            for (j, &entry) in sorted.iter().enumerate() {
+                let p = vertex_of(entry);
+                for q in window_of(j, config.window, sorted) {
                     if p < q && close_and_unjoined(positions, adjacency, distance, p, q) {
                         found.push((p, q));
                     }
