@@ -141,7 +141,7 @@ mod tests {
 
     /// (size, member offsets) of a struct as naga lays it out for WGSL.
     fn wgsl_layout(name: &str) -> (u32, Vec<u32>) {
-        layout_in(crate::kernels::FORCE_GATHER, name)
+        layout_in(crate::kernels::GATHER_INTEGRATE, name)
     }
 
     fn layout_in(source: &str, name: &str) -> (u32, Vec<u32>) {

@@ -26,8 +26,10 @@ pub(crate) fn bytes_of<T>(data: &[T]) -> u64 {
 pub enum GpuTopology {
     /// Per vertex in valence-sorted order (the paper's layout): its springs in CSR rows.
     Gather {
-        order: wgpu::Buffer,
-        offsets: wgpu::Buffer,
+        /// Per processing slot `[vertex, first entry]`, and one more whose `[1]` ends the last
+        /// row (one buffer, so the fused gather and integration fits WebGPU's default limit
+        /// of 8 storage buffers).
+        rows: wgpu::Buffer,
         entries: wgpu::Buffer,
     },
     /// One record per spring.
@@ -86,17 +88,18 @@ impl GpuModel {
         let (topology, topology_bytes) = match method {
             GpuMethod::Gather => {
                 let order = valence_sorted_order(model);
-                let mut offsets = Vec::with_capacity(n + 1);
-                offsets.push(0u32);
+                let mut rows: Vec<[u32; 2]> = Vec::with_capacity(n + 1);
+                let mut first = 0u32;
                 for &v in &order {
-                    offsets.push(offsets[offsets.len() - 1] + model.adjacency.valence(v as usize));
+                    rows.push([v, first]);
+                    first += model.adjacency.valence(v as usize);
                 }
+                rows.push([u32::MAX, first]);
                 let entries = gather_entries(model, &order);
                 gpu::check_binding_size(context, "gather adjacency", bytes_of(&entries))?;
-                let bytes = bytes_of(&order) + bytes_of(&offsets) + bytes_of(&entries);
+                let bytes = bytes_of(&rows) + bytes_of(&entries);
                 let topology = GpuTopology::Gather {
-                    order: storage(context, "gather order", &order, none),
-                    offsets: storage(context, "gather offsets", &offsets, none),
+                    rows: storage(context, "gather rows", &rows, none),
                     entries: storage(context, "gather entries", &entries, copy_dst),
                 };
                 (topology, bytes)

@@ -27,8 +27,8 @@ use crate::kernels::accumulate_incidence::AccumulateIncidence;
 use crate::kernels::balls::Balls;
 use crate::kernels::collide::Collide;
 use crate::kernels::external::External;
-use crate::kernels::force_gather::ForceGather;
 use crate::kernels::force_springs::ForceSprings;
+use crate::kernels::gather_integrate::GatherIntegrate;
 use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
@@ -42,13 +42,17 @@ use crate::step::{
     Fused, PassSink, Phase, Record, TIMESTAMP_SLOTS, Timestamped, WallClock, add_phase,
 };
 
-/// The force pass and, for scatter, its accumulation (boxed: on wasm, wgpu's handles make it
-/// several times the size of the gather variant).
+/// The force and integration passes: gather's one, or scatter's force pass, accumulation
+/// (boxed: on wasm, wgpu's handles make it several times the size of the rest) and
+/// integration.
 enum Forces {
-    Gather(ForceGather),
+    Gather(GatherIntegrate),
     Scatter {
         springs: ForceSprings,
         accumulation: Box<Accumulator>,
+        /// Per-vertex spring forces, the accumulation's sums.
+        forces: wgpu::Buffer,
+        integrate: Integrate,
     },
 }
 
@@ -64,15 +68,12 @@ pub struct GpuSolver {
     context: Arc<GpuContext>,
     model: GpuModel,
     state: GpuState,
-    /// Per-vertex spring forces (scratch of the force pass or the accumulation).
-    forces: wgpu::Buffer,
     external: External,
     /// Per spring, 1 once torn: when springs can break or dampers must know (see `tear`).
     broken: Option<wgpu::Buffer>,
     /// Springs breaking (when the model tears, or a restored snapshot has torn springs).
     tear: Option<Tear>,
     force: Forces,
-    integrate: Integrate,
     collide: Option<Collide>,
     balls: Option<Balls>,
     handles: Option<Handles>,
@@ -136,12 +137,17 @@ impl GpuSolver {
         let gpu_model = GpuModel::new(ctx, model, material, method)?;
         let state = GpuState::new(ctx, n);
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
+        // The flags exist when springs can break, or dampers must know which did.
+        let broken = (model.tearing.is_some() || model.bending_damping > 0.0)
+            .then(|| tear::broken_flags(ctx, model.spring_count()));
+        let external = External::new(ctx, &gpu_model, &state, broken.as_ref())?;
+        let extra_forces = &external.extra_forces;
         let force = match method {
             GpuMethod::Gather => {
-                Forces::Gather(ForceGather::new(ctx, &gpu_model, &state, &forces)?)
+                Forces::Gather(GatherIntegrate::new(ctx, &gpu_model, &state, extra_forces)?)
             }
             GpuMethod::Scatter(accumulation) => {
+                let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
                 let springs = ForceSprings::new(ctx, &gpu_model, &state)?;
                 let buffers = ScatterBuffers {
                     uniforms: &gpu_model.uniform_buffer,
@@ -170,17 +176,15 @@ impl GpuSolver {
                         Accumulator::Blend(AccumulateBlend::new(ctx, &buffers, accumulation)?)
                     }
                 };
+                let integrate = Integrate::new(ctx, &gpu_model, &state, &forces, extra_forces)?;
                 Forces::Scatter {
                     springs,
                     accumulation: Box::new(accumulation),
+                    forces,
+                    integrate,
                 }
             }
         };
-        // The flags exist when springs can break, or dampers must know which did.
-        let broken = (model.tearing.is_some() || model.bending_damping > 0.0)
-            .then(|| tear::broken_flags(ctx, model.spring_count()));
-        let external = External::new(ctx, &gpu_model, &state, broken.as_ref())?;
-        let integrate = Integrate::new(ctx, &gpu_model, &state, &forces, &external.extra_forces)?;
         let collide = Collide::new(ctx, &gpu_model, &state)?;
         let balls = match &collide {
             Some(collide) => Balls::new(ctx, &gpu_model, &state, collide)?,
@@ -221,11 +225,9 @@ impl GpuSolver {
             broken,
             model: gpu_model,
             state,
-            forces,
             external,
             tear,
             force,
-            integrate,
             collide,
             balls,
             handles,
@@ -277,6 +279,7 @@ impl GpuSolver {
             Forces::Scatter {
                 springs,
                 accumulation,
+                ..
             } => {
                 let (topology, scratch) = match accumulation.as_ref() {
                     Accumulator::AtomicF32(_) => (0, 0),
@@ -284,14 +287,15 @@ impl GpuSolver {
                     Accumulator::Incidence(a) => (a.bytes(), 0),
                     Accumulator::Blend(a) => (0, a.bytes()),
                 };
-                (topology, springs.bytes() + scratch)
+                // The per-vertex force sums too.
+                (topology, vec4s(n) + springs.bytes() + scratch)
             }
         };
         GpuMemory {
             positions: self.state.bytes(),
             topology: self.model.topology_bytes + topology,
-            // Integration scales and spring-force sums, per-spring forces, accumulators.
-            per_step: 2 * vec4s(n)
+            // Integration scales; scatter's force sums, per-spring forces and accumulators.
+            per_step: vec4s(n)
                 + scratch
                 + self.self_collide.as_ref().map_or(0, |p| p.bytes())
                 + self.tear.as_ref().map_or(0, |t| t.bytes()),
@@ -340,6 +344,7 @@ impl GpuSolver {
         }
         match &self.force {
             Forces::Gather(gather) => {
+                // Forces and integration in one pass, timed as the force phase.
                 sink.pass(Phase::Force, &mut |e, t| {
                     gather.kernel.encode(e, current, t)
                 })?;
@@ -347,6 +352,8 @@ impl GpuSolver {
             Forces::Scatter {
                 springs,
                 accumulation,
+                forces,
+                integrate,
             } => {
                 sink.pass(Phase::Force, &mut |e, t| {
                     springs.kernel.encode(e, current, t);
@@ -354,7 +361,7 @@ impl GpuSolver {
                 let acc = Phase::Accumulation;
                 match accumulation.as_ref() {
                     Accumulator::AtomicF32(a) => {
-                        sink.pass(acc, &mut |e, t| a.encode(e, &self.forces, t))?;
+                        sink.pass(acc, &mut |e, t| a.encode(e, forces, t))?;
                     }
                     Accumulator::Fixed(a) => {
                         sink.pass(acc, &mut |e, t| a.encode_accumulate(e, t))?;
@@ -368,11 +375,11 @@ impl GpuSolver {
                         sink.pass(acc, &mut |e, t| a.encode_resolve(e, t))?;
                     }
                 }
+                sink.pass(Phase::Integration, &mut |e, t| {
+                    integrate.kernel.encode(e, current, t);
+                })?;
             }
         }
-        sink.pass(Phase::Integration, &mut |e, t| {
-            self.integrate.kernel.encode(e, current, t);
-        })?;
         if let Some(collide) = &self.collide {
             let balls = self.balls.as_ref();
             sink.pass(Phase::Collision, &mut |e, t| {

@@ -20,7 +20,7 @@ use comfy_table::Table;
 use hooke::{EngineError, MemoryReport, Simulation, SolverChoice};
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::selfcollide::{self, SelfCollision};
-use hooke_core::{PhaseTimes, TimingSource};
+use hooke_core::{PhaseTimes, SimError, TimingSource};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::{GpuError, GpuMethod};
@@ -95,7 +95,9 @@ struct Row {
     phase_timing: &'static str,
     force_calculation_ms: f64,
     force_accumulation_ms: Option<f64>,
-    integration_ms: f64,
+    /// None where one pass sums the springs and integrates (the GPU's gather): its force
+    /// calculation includes the integration.
+    integration_ms: Option<f64>,
     /// Collider and self-collision passes, when the workload has them.
     collision_ms: Option<f64>,
     phased_total_ms: f64,
@@ -117,6 +119,9 @@ struct Report {
     gpu: Option<String>,
     steps: u32,
     rows: Vec<Row>,
+    /// Methods whose accumulation could not hold this workload's forces (fixed point, which
+    /// clamps and reports): "mesh method: why". The others still ran.
+    skipped: Vec<String>,
 }
 
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
@@ -163,6 +168,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     };
     let run_cpu = args.backend != BenchBackend::Gpu;
     let mut rows = Vec::new();
+    let mut skipped = Vec::new();
     for (name, workload) in meshes {
         let mut scene = benchmark_scene(workload).with_context(|| format!("building {name}"))?;
         let name = match args.bending {
@@ -207,8 +213,18 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                     return Err(error).with_context(|| format!("{name}, {}", choice.name()));
                 }
             };
-            let row = measure(&name, &scene, &mut simulation, args, &copy_pool)
-                .with_context(|| format!("{name}, {}", simulation.describe()))?;
+            let row = match measure(&name, &scene, &mut simulation, args, &copy_pool) {
+                Ok(row) => row,
+                Err(error) if out_of_range(&error) => {
+                    let why = format!("{name} {}: {error:#}", choice.name());
+                    eprintln!("  skipped {why}");
+                    skipped.push(why);
+                    continue;
+                }
+                Err(error) => {
+                    return Err(error.context(format!("{name}, {}", simulation.describe())));
+                }
+            };
             if args.format == OutputFormat::Table {
                 eprintln!(
                     "  {name} {} {}: {:.3} ms/step",
@@ -225,12 +241,27 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         gpu: gpu.as_ref().map(|c| c.describe()),
         steps: args.steps,
         rows,
+        skipped,
     };
     match args.format {
         OutputFormat::Json => println!("{}", serde_json::to_string_pretty(&report)?),
         OutputFormat::Table => print_report(&report),
     }
     Ok(())
+}
+
+/// True when a method failed because its accumulation's range could not hold the workload's
+/// forces (a property of the method, not a fault of the run).
+fn out_of_range(error: &anyhow::Error) -> bool {
+    error.chain().any(|cause| {
+        matches!(
+            cause.downcast_ref::<EngineError>(),
+            Some(EngineError::Simulation(SimError::Overflow { .. }))
+        ) || matches!(
+            cause.downcast_ref::<SimError>(),
+            Some(SimError::Overflow { .. })
+        )
+    })
 }
 
 /// Seed of the benchmark's irregular mesh (`scenes/bench-irregular.toml` uses the same).
@@ -374,7 +405,8 @@ fn measure(
         phase_timing: timing,
         force_calculation_ms: medians.force_calculation,
         force_accumulation_ms: medians.force_accumulation,
-        integration_ms: medians.integration,
+        // The GPU's gather integrates in its force pass; the CPU times its phases apart.
+        integration_ms: (backend == "cpu" || accumulates).then_some(medians.integration),
         collision_ms: medians.collision,
         phased_total_ms: medians.total,
         total_ms,
@@ -463,7 +495,8 @@ fn print_report(report: &Report) {
             format!("{:.3}", r.force_calculation_ms),
             r.force_accumulation_ms
                 .map_or("-".to_owned(), |a| format!("{a:.3}")),
-            format!("{:.3}", r.integration_ms),
+            r.integration_ms
+                .map_or("-".to_owned(), |i| format!("{i:.3}")),
             r.collision_ms.map_or("-".to_owned(), |c| format!("{c:.3}")),
             format!("{:.3}", r.phased_total_ms),
             format!("{:.3}", r.total_ms),
@@ -477,7 +510,7 @@ fn print_report(report: &Report) {
     }
     println!("{}", table(t));
     println!(
-        "gather: force calc includes the per-vertex sum (no separate accumulation), as in the paper's Table 2."
+        "gather: force calc includes the per-vertex sum (no separate accumulation), as in the paper's Table 2; on the gpu also the integration (one pass does both)."
     );
     println!(
         "total: the fused step as `hooke run` executes it; bw floor: bytes/step over measured copy bandwidth."
@@ -488,9 +521,31 @@ fn print_report(report: &Report) {
             gpu.phase_timing
         );
     }
+    for why in &report.skipped {
+        println!("skipped {why}");
+    }
     if report.rows.iter().any(|r| r.dt_above_stability_bound) {
         println!(
             "*: the workload's dt exceeds hooke's conservative stability bound on this mesh (it ran stably here)."
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_an_accumulation_out_of_range_skips_a_method() {
+        let overflow = || SimError::Overflow {
+            step: 280,
+            detail: "a spring force exceeded the fixed-point range".into(),
+        };
+        let from_engine = anyhow::Error::from(EngineError::Simulation(overflow()))
+            .context("grid 256^2, gpu scatter/atomic-fixed");
+        assert!(out_of_range(&from_engine));
+        assert!(out_of_range(&anyhow::Error::from(overflow())));
+        let unstable = EngineError::Simulation(SimError::NonFinite { step: 3, vertex: 7 });
+        assert!(!out_of_range(&anyhow::Error::from(unstable)));
     }
 }

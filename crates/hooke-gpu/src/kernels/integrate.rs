@@ -1,6 +1,7 @@
-//! `integrate.wgsl`: damped Verlet (paper eq. 3-4) in delta form, shared by every method. Reads
-//! the current positions and the per-vertex forces (plus the extra forces of a control), writes
-//! the next positions and updates the deltas in place; records the first non-finite vertex.
+//! `integrate.wgsl`: the scatter methods' integration pass, damped Verlet (paper eq. 3-4) in
+//! delta form (`verlet.wgsl`, which gather runs inside its force pass). Reads the current
+//! positions and the per-vertex forces (plus the extra forces of a control), writes the next
+//! positions and updates the deltas in place; records the first non-finite vertex.
 
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::Kernel;
@@ -50,7 +51,8 @@ mod tests {
     use super::*;
     use crate::gpu::zeroed;
     use crate::kernels::testing::{
-        as_gpu_sees, context, read_vec3s, reference_spring_forces, run, stretched_scene,
+        as_gpu_sees, context, expected_verlet_step, read_vec3s, reference_spring_forces, run,
+        stretched_scene,
     };
     use crate::methods::GpuMethod;
     use crate::model::vec4s;
@@ -97,24 +99,13 @@ mod tests {
             integrate.kernel.encode(e, gpu_state.current, None)
         });
         let next = read_vec3s(&context, &gpu_state.positions[1 - gpu_state.current], n);
-        let (m, material) = (&scene.model, &scene.material);
-        let dt = material.dt;
+        let expected = expected_verlet_step(&scene, &seen, &spring, &extra);
         for v in 0..n {
-            let x = seen.positions[v];
-            let expected = if m.pinned[v] {
-                x
-            } else {
-                // Paper eq. 3-4 rearranged: d' = (1 - c dt/m) d + F dt^2/m + g dt^2.
-                let d = x - seen.previous_positions[v];
-                let force = spring[v].as_vec3().as_dvec3() + extra[v].as_vec3().as_dvec3();
-                x + d * (1.0 - material.damping * dt / m.masses[v])
-                    + force * dt * dt / m.masses[v]
-                    + material.gravity * dt * dt
-            };
             assert!(
-                next[v].distance(expected) < TOLERANCE_M,
-                "vertex {v}: {} vs {expected}",
-                next[v]
+                next[v].distance(expected[v]) < TOLERANCE_M,
+                "vertex {v}: {} vs {}",
+                next[v],
+                expected[v]
             );
         }
     }

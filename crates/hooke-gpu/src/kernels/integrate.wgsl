@@ -1,17 +1,8 @@
-// Verlet with damping (paper eq. 3-4) in delta form, the same arithmetic as the CPU solver:
-// with d = x - x_prev, a = dt^2 / m and v = 1 - c dt / m (both 0 for pinned vertices),
-// d' = v d + a F + g dt^2 and x' = x + d'. Storing d instead of x_prev keeps float32
-// increments at their own precision. Records the first non-finite position in `status`.
+// The integration pass of the scatter methods: each vertex advances under the forces their
+// accumulation summed (the integration itself is `verlet.wgsl`).
 
-@group(0) @binding(0) var<uniform> u: StepUniforms;
-@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read_write> next_positions: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read_write> deltas: array<vec4<f32>>;
-// Per vertex: (dt^2 / m, 1 - c dt / m, 0, 0).
-@group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
+// Per vertex: the net spring force.
 @group(0) @binding(5) var<storage, read> forces: array<vec4<f32>>;
-@group(0) @binding(6) var<storage, read> extra_forces: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read_write> status: Status;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -19,26 +10,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     if v >= u.vertex_count {
         return;
     }
-    let scale = scales[v];
-    var force = forces[v].xyz;
-    if u.has_extra != 0u {
-        force += extra_forces[v].xyz;
-    }
-    let x = positions[v].xyz;
-    let moved = deltas[v].xyz * scale.y + force * scale.x + u.gravity_step.xyz;
-    // Select rather than scale by zero: a pinned vertex must stay put even if a force is inf.
-    let free = scale.x > 0.0;
-    let delta = select(vec3<f32>(0.0), moved, free);
-    let next = select(x, x + delta, free);
-    deltas[v] = vec4<f32>(delta, 0.0);
-    next_positions[v] = vec4<f32>(next, 1.0);
-    if !is_finite3(next) {
-        let step = status.step_counter + 1u;
-        // Steps run one after another, so only invocations of the first bad step see
-        // `previous >= step` and compete for the lowest vertex.
-        let previous = atomicMin(&status.first_bad_step, step);
-        if previous >= step {
-            atomicMin(&status.first_bad_vertex, v);
-        }
-    }
+    integrate_vertex(v, positions[v].xyz, forces[v].xyz);
 }

@@ -11,8 +11,8 @@ pub mod accumulate_incidence;
 pub mod balls;
 pub mod collide;
 pub mod external;
-pub mod force_gather;
 pub mod force_springs;
+pub mod gather_integrate;
 pub mod handles;
 pub mod integrate;
 pub mod radix_sort;
@@ -37,13 +37,25 @@ pub struct ScatterBuffers<'a> {
     pub spring_count: u32,
 }
 
-/// A kernel's full source with the shared prelude (and `paths.wgsl` for collider kernels).
+/// A kernel's full source with the shared prelude (and `verlet.wgsl` for the kernels that
+/// integrate, `paths.wgsl` for collider kernels).
 macro_rules! kernel_source {
     ($file:literal) => {
         concat!(
             include_str!("workgroup.wgsl"),
             "\n",
             include_str!("common.wgsl"),
+            "\n",
+            include_str!($file)
+        )
+    };
+    (with verlet $file:literal) => {
+        concat!(
+            include_str!("workgroup.wgsl"),
+            "\n",
+            include_str!("common.wgsl"),
+            "\n",
+            include_str!("verlet.wgsl"),
             "\n",
             include_str!($file)
         )
@@ -61,7 +73,7 @@ macro_rules! kernel_source {
     };
 }
 
-pub const FORCE_GATHER: &str = kernel_source!("force_gather.wgsl");
+pub const GATHER_INTEGRATE: &str = kernel_source!(with verlet "gather_integrate.wgsl");
 pub const FORCE_SPRINGS: &str = kernel_source!("force_springs.wgsl");
 pub const ACCUMULATE_ATOMIC_F32: &str = kernel_source!("accumulate_atomic_f32.wgsl");
 pub const ACCUMULATE_FIXED: &str = kernel_source!("accumulate_fixed.wgsl");
@@ -69,7 +81,7 @@ pub const RESOLVE_FIXED: &str = kernel_source!("resolve_fixed.wgsl");
 pub const ACCUMULATE_INCIDENCE: &str = kernel_source!("accumulate_incidence.wgsl");
 pub const ACCUMULATE_BLEND: &str = kernel_source!("accumulate_blend.wgsl");
 pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
-pub const INTEGRATE: &str = kernel_source!("integrate.wgsl");
+pub const INTEGRATE: &str = kernel_source!(with verlet "integrate.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
 pub const TEAR: &str = kernel_source!("tear.wgsl");
@@ -82,7 +94,7 @@ pub const SELF_COLLIDE: &str = kernel_source!("self_collide.wgsl");
 /// Every kernel by name, for validation.
 #[cfg(test)]
 pub const ALL: &[(&str, &str)] = &[
-    ("force_gather", FORCE_GATHER),
+    ("gather_integrate", GATHER_INTEGRATE),
     ("force_springs", FORCE_SPRINGS),
     ("accumulate_atomic_f32", ACCUMULATE_ATOMIC_F32),
     ("accumulate_fixed", ACCUMULATE_FIXED),
@@ -119,6 +131,34 @@ mod tests {
             Validator::new(ValidationFlags::all(), capabilities)
                 .validate(&module)
                 .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+        }
+    }
+
+    #[test]
+    fn every_kernel_binds_no_more_storage_buffers_than_webgpu_allows_by_default() {
+        // WebGPU's default `maxStorageBuffersPerShaderStage`: the page asks for no more.
+        const LIMIT: usize = 8;
+        for (name, source) in super::ALL {
+            let module = naga::front::wgsl::parse_str(source).expect("parses");
+            let info = Validator::new(ValidationFlags::all(), Capabilities::all())
+                .validate(&module)
+                .expect("validates");
+            for (index, entry) in module.entry_points.iter().enumerate() {
+                let uses = info.get_entry_point(index);
+                let storage = module
+                    .global_variables
+                    .iter()
+                    .filter(|(handle, g)| {
+                        matches!(g.space, naga::AddressSpace::Storage { .. })
+                            && !uses[*handle].is_empty()
+                    })
+                    .count();
+                assert!(
+                    storage <= LIMIT,
+                    "{name}.wgsl {}: {storage} storage buffers",
+                    entry.name
+                );
+            }
         }
     }
 

@@ -54,6 +54,32 @@ pub fn stretched_scene() -> (Scene, State) {
     )
 }
 
+/// The next positions of the delta-form Verlet step (paper eq. 3-4) from `state` under spring
+/// forces `springs` (rounded to float32, as the GPU holds them) plus `extra`, in float64:
+/// `d' = (1 - c dt/m) d + F dt^2/m + g dt^2`, pinned vertices kept.
+pub fn expected_verlet_step(
+    scene: &Scene,
+    state: &State,
+    springs: &[DVec3],
+    extra: &[DVec3],
+) -> Vec<DVec3> {
+    let (m, material) = (&scene.model, &scene.material);
+    let dt = material.dt;
+    (0..m.vertex_count())
+        .map(|v| {
+            let x = state.positions[v];
+            if m.pinned[v] {
+                return x;
+            }
+            let d = x - state.previous_positions[v];
+            let force = springs[v].as_vec3().as_dvec3() + extra[v].as_vec3().as_dvec3();
+            x + d * (1.0 - material.damping * dt / m.masses[v])
+                + force * dt * dt / m.masses[v]
+                + material.gravity * dt * dt
+        })
+        .collect()
+}
+
 /// `count` `vec4` values of `buffer`, as float64 xyz.
 pub fn read_vec3s(context: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Vec<DVec3> {
     let bytes = read_back(context, &[(buffer, 16 * count as u64)]).expect("read back");

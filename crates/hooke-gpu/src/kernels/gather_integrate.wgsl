@@ -1,0 +1,33 @@
+// Gather (PCA, paper Section 4.1), fused with integration: each vertex sums the forces of its
+// springs from a CSR adjacency stored in the paper's valence-sorted order, so the invocations
+// of a workgroup loop the same number of times, and advances at once (`verlet.wgsl`). The
+// net force never leaves the invocation: one pass per step, no per-vertex force buffer.
+
+struct GatherEntry {
+    neighbor: u32,
+    rest_length: f32,
+    stiffness: f32,
+}
+
+// Per processing slot: (vertex, its first entry); one more row whose .y ends the last one.
+// (Vertex and offset share a buffer: with the integration's six, a stage may bind no more
+// than WebGPU's default of eight storage buffers.)
+@group(0) @binding(5) var<storage, read> rows: array<vec2<u32>>;
+@group(0) @binding(8) var<storage, read> entries: array<GatherEntry>;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let slot = flat_index(id, groups);
+    if slot >= u.vertex_count {
+        return;
+    }
+    let row = rows[slot];
+    let vertex = row.x;
+    let x = positions[vertex].xyz;
+    var force = vec3<f32>(0.0);
+    for (var k = row.y; k < rows[slot + 1u].y; k++) {
+        let e = entries[k];
+        force += spring_force(x, positions[e.neighbor].xyz, e.stiffness * u.stiffness_scale, e.rest_length);
+    }
+    integrate_vertex(vertex, x, force);
+}
