@@ -213,23 +213,15 @@ pub fn resolve_with(
                     return None;
                 }
                 let p = vertex_of(sorted[j]);
-                let wp = weights[p as usize];
-                if wp <= 0.0 {
-                    return None;
-                }
                 let xp = current[p as usize];
                 let mut correction = Vec3::ZERO;
                 for q in window_of(j, config.window, sorted) {
-                    let wq = weights[q as usize];
-                    let pair = Pair {
-                        p,
-                        q,
-                        d: xp - current[q as usize],
-                        share: wp / (wp + wq),
-                    };
-                    correction += push(adjacency, distance, pair);
+                    let d = xp - current[q as usize];
+                    correction += push(adjacency, weights, distance, [p, q], d);
                 }
-                (correction != Vec3::ZERO).then_some((p, correction))
+                // A pinned vertex does not move (its weight is read only now: most vertices
+                // have no close pair).
+                (correction != Vec3::ZERO && weights[p as usize] > 0.0).then_some((p, correction))
             })
             .collect();
         for &(p, c) in &moves {
@@ -240,21 +232,16 @@ pub fn resolve_with(
     all_moves
 }
 
-/// Two vertices in one window: `d` runs from `q` to `p`; `share` is `p`'s part of the push.
-struct Pair {
-    p: u32,
-    q: u32,
-    d: Vec3,
-    share: f32,
-}
-
-/// How far `p` moves away from `q` (zero unless they are unjoined and too close).
-fn push(adjacency: &Adjacency, distance: f32, pair: Pair) -> Vec3 {
-    let Pair { p, q, d, share } = pair;
+/// How far `p` moves away from `q`, `d` running from `q` to `p` (zero unless they are unjoined
+/// and too close): `p`'s share of the push, by inverse mass. The weights are read only for a
+/// close pair: most window pairs are not, and weights sit at random addresses.
+fn push(adjacency: &Adjacency, weights: &[f32], distance: f32, [p, q]: [u32; 2], d: Vec3) -> Vec3 {
     let l2 = d.dot(d);
     if l2 >= distance * distance || joined(adjacency, p, q) {
         return Vec3::ZERO;
     }
+    let (wp, wq) = (weights[p as usize], weights[q as usize]);
+    let share = wp / (wp + wq);
     if l2 == 0.0 {
         // Coincident: part them vertically, the lower index going up.
         let sign = if p < q { 1.0 } else { -1.0 };
