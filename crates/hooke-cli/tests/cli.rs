@@ -472,18 +472,24 @@ fn gpu_bench_prints_every_accumulation() {
     ] {
         assert!(methods.contains(&expected), "{expected} in {methods:?}");
     }
-    // Gather: force, integration, step counter; scatter adds its accumulation pass(es).
-    let passes = |method: &str| {
+    let row = |method: &str| {
         report["rows"]
             .as_array()
             .expect("rows")
             .iter()
             .find(|r| r["method"] == method)
-            .and_then(|r| r["dispatches_per_step"].as_u64())
+            .cloned()
+            .unwrap_or_else(|| panic!("a {method} row"))
     };
-    assert_eq!(passes("gather"), Some(3));
+    let passes = |method: &str| row(method)["dispatches_per_step"].as_u64();
+    // Gather: forces and integration in one pass, then the step counter; scatter: force,
+    // accumulation pass(es), integration, step counter.
+    assert_eq!(passes("gather"), Some(2));
     assert_eq!(passes("scatter/incidence"), Some(4));
     assert_eq!(passes("scatter/atomic-fixed"), Some(5));
+    // So gather has no integration time of its own; scatter has.
+    assert!(row("gather")["integration_ms"].is_null());
+    assert!(row("scatter/incidence")["integration_ms"].as_f64() > Some(0.0));
 }
 
 #[test]
