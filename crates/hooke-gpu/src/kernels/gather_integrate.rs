@@ -2,6 +2,7 @@
 //! vertex, in valence-sorted order, sums the forces of its springs (paper eq. 1) from its CSR
 //! row and integrates at once (`verlet.wgsl`, shared with the scatter methods' `integrate`).
 
+use super::integrate::verlet_bindings;
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::Kernel;
 use crate::model::{GpuModel, GpuTopology};
@@ -31,17 +32,10 @@ impl GatherIntegrate {
             "main",
             model.uniforms.vertex_count,
             |current| {
-                vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
-                    (1, state.positions[current].as_entire_binding()),
-                    (2, state.positions[1 - current].as_entire_binding()),
-                    (3, state.deltas.as_entire_binding()),
-                    (4, model.scales.as_entire_binding()),
-                    (5, rows.as_entire_binding()),
-                    (6, extra_forces.as_entire_binding()),
-                    (7, state.status.as_entire_binding()),
-                    (8, entries.as_entire_binding()),
-                ]
+                let mut resources = verlet_bindings(model, state, extra_forces, current);
+                resources.push((5, rows.as_entire_binding()));
+                resources.push((8, entries.as_entire_binding()));
+                resources
             },
         )?;
         Ok(Self { kernel })
@@ -55,10 +49,9 @@ mod tests {
     use super::*;
     use crate::gpu::zeroed;
     use crate::kernels::testing::{
-        as_gpu_sees, context, expected_verlet_step, read_vec3s, reference_spring_forces, run,
-        stretched_scene,
+        assert_next_positions, context, damped_on_gpu, expected_verlet_step,
+        reference_spring_forces, run,
     };
-    use crate::methods::GpuMethod;
     use crate::model::vec4s;
 
     /// float32 positions of order 1 m after summing up to 10 springs and a handful of
@@ -68,30 +61,15 @@ mod tests {
     #[test]
     fn one_pass_sums_each_vertex_springs_and_takes_the_reference_verlet_step() {
         let Some(context) = context() else { return };
-        let (mut scene, state) = stretched_scene();
-        scene.material.damping = 0.05;
+        let (scene, seen, model, gpu_state) = damped_on_gpu(&context);
         let n = scene.model.vertex_count();
-        let model = GpuModel::new(&context, &scene.model, &scene.material, GpuMethod::Gather)
-            .expect("model");
-        let gpu_state = GpuState::new(&context, n);
-        gpu_state.write(&context, &state);
-        model.write_uniforms(&context);
         let extra = zeroed(&context, "extra", vec4s(n), wgpu::BufferUsages::empty());
         let gather = GatherIntegrate::new(&context, &model, &gpu_state, &extra).expect("kernel");
         run(&context, |e| {
             gather.kernel.encode(e, gpu_state.current, None)
         });
-        let seen = as_gpu_sees(&state);
         let springs = reference_spring_forces(&scene.model, &seen.positions);
         let expected = expected_verlet_step(&scene, &seen, &springs, &vec![DVec3::ZERO; n]);
-        let next = read_vec3s(&context, &gpu_state.positions[1 - gpu_state.current], n);
-        for v in 0..n {
-            assert!(
-                next[v].distance(expected[v]) < TOLERANCE_M,
-                "vertex {v}: {} vs {}",
-                next[v],
-                expected[v]
-            );
-        }
+        assert_next_positions(&context, &gpu_state, &expected, TOLERANCE_M);
     }
 }

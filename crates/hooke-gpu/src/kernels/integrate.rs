@@ -28,20 +28,32 @@ impl Integrate {
             "main",
             model.uniforms.vertex_count,
             |current| {
-                vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
-                    (1, state.positions[current].as_entire_binding()),
-                    (2, state.positions[1 - current].as_entire_binding()),
-                    (3, state.deltas.as_entire_binding()),
-                    (4, model.scales.as_entire_binding()),
-                    (5, forces.as_entire_binding()),
-                    (6, extra_forces.as_entire_binding()),
-                    (7, state.status.as_entire_binding()),
-                ]
+                let mut resources = verlet_bindings(model, state, extra_forces, current);
+                resources.push((5, forces.as_entire_binding()));
+                resources
             },
         )?;
         Ok(Self { kernel })
     }
+}
+
+/// The bindings `verlet.wgsl` declares (0-4, 6, 7), for every kernel that integrates; each
+/// adds its own force source at 5 and up.
+pub fn verlet_bindings<'a>(
+    model: &'a GpuModel,
+    state: &'a GpuState,
+    extra_forces: &'a wgpu::Buffer,
+    current: usize,
+) -> Vec<(u32, wgpu::BindingResource<'a>)> {
+    vec![
+        (0, model.uniform_buffer.as_entire_binding()),
+        (1, state.positions[current].as_entire_binding()),
+        (2, state.positions[1 - current].as_entire_binding()),
+        (3, state.deltas.as_entire_binding()),
+        (4, model.scales.as_entire_binding()),
+        (6, extra_forces.as_entire_binding()),
+        (7, state.status.as_entire_binding()),
+    ]
 }
 
 #[cfg(test)]
@@ -51,10 +63,9 @@ mod tests {
     use super::*;
     use crate::gpu::zeroed;
     use crate::kernels::testing::{
-        as_gpu_sees, context, expected_verlet_step, read_vec3s, reference_spring_forces, run,
-        stretched_scene,
+        assert_next_positions, context, damped_on_gpu, expected_verlet_step,
+        reference_spring_forces, run,
     };
-    use crate::methods::GpuMethod;
     use crate::model::vec4s;
     use crate::state::positions_to_vec4;
 
@@ -64,16 +75,9 @@ mod tests {
     #[test]
     fn integrate_takes_the_delta_form_verlet_step_of_the_reference() {
         let Some(context) = context() else { return };
-        let (mut scene, state) = stretched_scene();
-        scene.material.damping = 0.05;
+        let (scene, seen, model, gpu_state) = damped_on_gpu(&context);
         let n = scene.model.vertex_count();
-        let model = GpuModel::new(&context, &scene.model, &scene.material, GpuMethod::Gather)
-            .expect("model");
-        let gpu_state = GpuState::new(&context, n);
-        gpu_state.write(&context, &state);
-        model.write_uniforms(&context);
         // Given forces (the springs' at this state) and extra forces (a point force each).
-        let seen = as_gpu_sees(&state);
         let spring = reference_spring_forces(&scene.model, &seen.positions);
         let extra: Vec<DVec3> = (0..n)
             .map(|v| DVec3::new(0.0, 1e-3 * v as f64, 0.0))
@@ -98,15 +102,7 @@ mod tests {
         run(&context, |e| {
             integrate.kernel.encode(e, gpu_state.current, None)
         });
-        let next = read_vec3s(&context, &gpu_state.positions[1 - gpu_state.current], n);
         let expected = expected_verlet_step(&scene, &seen, &spring, &extra);
-        for v in 0..n {
-            assert!(
-                next[v].distance(expected[v]) < TOLERANCE_M,
-                "vertex {v}: {} vs {}",
-                next[v],
-                expected[v]
-            );
-        }
+        assert_next_positions(&context, &gpu_state, &expected, TOLERANCE_M);
     }
 }

@@ -54,6 +54,40 @@ pub fn stretched_scene() -> (Scene, State) {
     )
 }
 
+/// The stretched scene with damping 0.05, laid out for gather on the GPU with its state
+/// written: the scene, the state as float32 holds it, the model and the state buffers.
+pub fn damped_on_gpu(context: &GpuContext) -> (Scene, State, GpuModel, GpuState) {
+    let (mut scene, state) = stretched_scene();
+    scene.material.damping = 0.05;
+    let n = scene.model.vertex_count();
+    let model =
+        GpuModel::new(context, &scene.model, &scene.material, GpuMethod::Gather).expect("model");
+    let gpu_state = GpuState::new(context, n);
+    gpu_state.write(context, &state);
+    model.write_uniforms(context);
+    (scene, as_gpu_sees(&state), model, gpu_state)
+}
+
+/// Asserts that the position buffer a step writes holds `expected`, within `tolerance` m.
+pub fn assert_next_positions(
+    context: &GpuContext,
+    gpu_state: &GpuState,
+    expected: &[DVec3],
+    tolerance: f64,
+) {
+    let next = read_vec3s(
+        context,
+        &gpu_state.positions[1 - gpu_state.current],
+        expected.len(),
+    );
+    for (v, (next, expected)) in next.iter().zip(expected).enumerate() {
+        assert!(
+            next.distance(*expected) < tolerance,
+            "vertex {v}: {next} vs {expected}"
+        );
+    }
+}
+
 /// The next positions of the delta-form Verlet step (paper eq. 3-4) from `state` under spring
 /// forces `springs` (rounded to float32, as the GPU holds them) plus `extra`, in float64:
 /// `d' = (1 - c dt/m) d + F dt^2/m + g dt^2`, pinned vertices kept.
