@@ -115,7 +115,7 @@ impl GpuStatus {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct SortUniforms {
     pub count: u32,
-    /// The pass sorts on bits `shift..shift + 4` of the key.
+    /// The pass sorts on bits `shift..shift + 8` of the key.
     pub shift: u32,
     pub block_count: u32,
     pub pad: u32,
@@ -132,7 +132,10 @@ pub struct SelfUniforms {
     /// The grid's shift along each axis, in cells.
     pub offset: f32,
     pub key_bits: u32,
-    pub pad: [u32; 2],
+    /// 1 when the key kernel first applies the previous grid's corrections.
+    pub apply_previous: u32,
+    /// The sort's blocks over the vertices.
+    pub block_count: u32,
 }
 
 #[cfg(test)]
@@ -209,6 +212,6 @@ mod tests {
         assert_eq!(offsets, [0, 4, 8, 12]);
         let (size, offsets) = layout_in(crate::kernels::SELF_COLLIDE, "SelfUniforms");
         assert_eq!(size as usize, size_of::<SelfUniforms>());
-        assert_eq!(offsets[..6], [0, 4, 8, 12, 16, 20]);
+        assert_eq!(offsets, [0, 4, 8, 12, 16, 20, 24, 28]);
     }
 }

@@ -395,13 +395,16 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
         return;
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-    // Sizes off the 64-pair blocks, key ranges with many and few repeats, 8 to 32 bits.
+    // Sizes off the 64-pair rounds and 1024-pair blocks, key ranges with many and few
+    // repeats, 8 to 32 bits (odd and even pass counts).
     for (count, bits, range) in [
         (1, 8, 256),
         (63, 8, 4),
+        (3000, 8, 3),
         (1000, 16, 300),
         (4097, 16, 65_536),
         (20_000, 24, 1 << 24),
+        (9000, 24, 40),
         (3000, 32, u32::MAX),
     ] {
         let keys: Vec<u32> = (0..count).map(|_| rng.random_range(0..range)).collect();

@@ -38,7 +38,8 @@ pub struct ScatterBuffers<'a> {
 }
 
 /// A kernel's full source with the shared prelude (and `verlet.wgsl` for the kernels that
-/// integrate, `paths.wgsl` for collider kernels).
+/// integrate, `paths.wgsl` for collider kernels, `digits.wgsl` for the radix sort and the
+/// self-collision keys that count its first digits).
 macro_rules! kernel_source {
     ($file:literal) => {
         concat!(
@@ -56,6 +57,17 @@ macro_rules! kernel_source {
             include_str!("common.wgsl"),
             "\n",
             include_str!("verlet.wgsl"),
+            "\n",
+            include_str!($file)
+        )
+    };
+    (with digits $file:literal) => {
+        concat!(
+            include_str!("workgroup.wgsl"),
+            "\n",
+            include_str!("common.wgsl"),
+            "\n",
+            include_str!("digits.wgsl"),
             "\n",
             include_str!($file)
         )
@@ -88,8 +100,8 @@ pub const TEAR: &str = kernel_source!("tear.wgsl");
 pub const COLLIDE: &str = kernel_source!(with paths "collide.wgsl");
 pub const BALLS: &str = kernel_source!(with paths "balls.wgsl");
 pub const HANDLES: &str = kernel_source!(with paths "handles.wgsl");
-pub const RADIX_SORT: &str = kernel_source!("radix_sort.wgsl");
-pub const SELF_COLLIDE: &str = kernel_source!("self_collide.wgsl");
+pub const RADIX_SORT: &str = kernel_source!(with digits "radix_sort.wgsl");
+pub const SELF_COLLIDE: &str = kernel_source!(with digits "self_collide.wgsl");
 
 /// Every kernel by name, for validation.
 #[cfg(test)]

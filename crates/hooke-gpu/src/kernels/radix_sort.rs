@@ -1,7 +1,9 @@
 //! A stable LSD radix sort of `(u32 key, u32 value)` pairs on the GPU (`radix_sort.wgsl`), the
-//! "GPU sorter" of the paper's self-collision binning. Each pass sorts on 4 key bits with
+//! "GPU sorter" of the paper's self-collision binning. Each pass sorts on 8 key bits with
 //! three kernels (count digits per block, scan, scatter); the pairs go back and forth between
-//! two buffer pairs, and an even number of passes leaves the result where the input was.
+//! two buffer pairs, so the result is in the input's pair after an even number of passes and
+//! in the other after an odd one. A block is [`BLOCK`] pairs, one workgroup's: the histogram
+//! holds a quarter as many counts as pairs, which keeps the one-workgroup scan short.
 
 use crate::GpuError;
 use crate::context::GpuContext;
@@ -10,16 +12,19 @@ use crate::gpu::{
 };
 use crate::layout::SortUniforms;
 
-const BITS_PER_PASS: u32 = 4;
-const DIGITS: u64 = 16;
+const BITS_PER_PASS: u32 = 8;
+const DIGITS: u64 = 256;
+/// Pairs per block (`BLOCK` in `digits.wgsl`).
+pub const BLOCK: u32 = 1024;
 
 /// Buffers and recorded bind groups to sort `count` pairs on their low `key_bits` bits.
 #[derive(Debug)]
 pub struct RadixSort {
-    count: u32,
-    /// Input and output: `keys[0]`, `values[0]`. `[1]` is scratch.
+    /// Input: `keys[0]`, `values[0]`; output: `[passes % 2]`.
     keys: [wgpu::Buffer; 2],
     values: [wgpu::Buffer; 2],
+    block_count: u32,
+    histogram: wgpu::Buffer,
     count_digits: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
@@ -29,10 +34,10 @@ pub struct RadixSort {
 }
 
 impl RadixSort {
-    /// `key_bits` is rounded up to a multiple of 8 (an even number of passes).
+    /// Sorts on the low `key_bits` bits, rounded up to a multiple of 8 (one pass each).
     pub fn new(context: &GpuContext, count: u32, key_bits: u32) -> Result<Self, GpuError> {
-        let pass_count = key_bits.div_ceil(2 * BITS_PER_PASS) * 2;
-        let block_count = count.div_ceil(WORKGROUP_SIZE).max(1);
+        let pass_count = key_bits.div_ceil(BITS_PER_PASS).max(1);
+        let block_count = count.div_ceil(BLOCK).max(1);
         let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let pair_bytes = 4 * u64::from(count);
         let keys = [0, 1].map(|k| zeroed(context, &format!("sort keys {k}"), pair_bytes, usage));
@@ -62,7 +67,7 @@ impl RadixSort {
                         &[
                             (0, uniforms.as_entire_binding()),
                             (1, keys[from].as_entire_binding()),
-                            (5, histogram.as_entire_binding()),
+                            (10, histogram.as_entire_binding()),
                         ],
                     ),
                     bind_group(
@@ -71,7 +76,7 @@ impl RadixSort {
                         &scan.get_bind_group_layout(0),
                         &[
                             (0, uniforms.as_entire_binding()),
-                            (5, histogram.as_entire_binding()),
+                            (10, histogram.as_entire_binding()),
                         ],
                     ),
                     bind_group(
@@ -84,16 +89,17 @@ impl RadixSort {
                             (2, values[from].as_entire_binding()),
                             (3, keys[to].as_entire_binding()),
                             (4, values[to].as_entire_binding()),
-                            (5, histogram.as_entire_binding()),
+                            (10, histogram.as_entire_binding()),
                         ],
                     ),
                 ]
             })
             .collect();
         Ok(Self {
-            count,
             keys,
             values,
+            block_count,
+            histogram,
             count_digits,
             scan,
             scatter,
@@ -102,14 +108,35 @@ impl RadixSort {
         })
     }
 
-    /// Where the keys to sort go, and where the sorted keys are afterwards.
+    /// Where the keys to sort go.
     pub fn keys(&self) -> &wgpu::Buffer {
         &self.keys[0]
     }
 
-    /// Where the values go, and where they are in key order afterwards.
+    /// Where the values go.
     pub fn values(&self) -> &wgpu::Buffer {
         &self.values[0]
+    }
+
+    /// Where the sorted keys are afterwards.
+    pub fn sorted_keys(&self) -> &wgpu::Buffer {
+        &self.keys[self.passes.len() % 2]
+    }
+
+    /// Where the values are in key order afterwards.
+    pub fn sorted_values(&self) -> &wgpu::Buffer {
+        &self.values[self.passes.len() % 2]
+    }
+
+    /// The digit counts per block (`histogram` in `digits.wgsl`, binding 10), for a kernel
+    /// that writes the keys and counts the first pass's digits itself.
+    pub fn histogram(&self) -> &wgpu::Buffer {
+        &self.histogram
+    }
+
+    /// Blocks of [`BLOCK`] pairs.
+    pub fn block_count(&self) -> u32 {
+        self.block_count
     }
 
     /// GPU memory held, bytes.
@@ -117,17 +144,23 @@ impl RadixSort {
         self.bytes
     }
 
-    /// Dispatches the sort records: count, scan and scatter per digit.
-    pub fn dispatches(&self) -> u32 {
-        3 * self.passes.len() as u32
+    /// Dispatches the sort records: count, scan and scatter per digit, less the first count
+    /// when the caller's kernel counted it (see [`RadixSort::encode`]).
+    pub fn dispatches(&self, first_counted: bool) -> u32 {
+        3 * self.passes.len() as u32 - u32::from(first_counted)
     }
 
-    /// Records the sort into an open compute pass.
-    pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
-        for [count_group, scan_group, scatter_group] in &self.passes {
-            dispatch_in(pass, &self.count_digits, count_group, self.count);
+    /// Records the sort into an open compute pass. `first_counted`: the kernel that wrote the
+    /// keys also counted the first pass's digits into [`RadixSort::histogram`].
+    pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>, first_counted: bool) {
+        // One workgroup per block.
+        let block_invocations = self.block_count * WORKGROUP_SIZE;
+        for (index, [count_group, scan_group, scatter_group]) in self.passes.iter().enumerate() {
+            if index > 0 || !first_counted {
+                dispatch_in(pass, &self.count_digits, count_group, block_invocations);
+            }
             dispatch_in(pass, &self.scan, scan_group, WORKGROUP_SIZE);
-            dispatch_in(pass, &self.scatter, scatter_group, self.count);
+            dispatch_in(pass, &self.scatter, scatter_group, block_invocations);
         }
     }
 
@@ -156,15 +189,46 @@ impl RadixSort {
                 label: Some("radix sort"),
                 timestamp_writes: None,
             });
-            sorter.encode(&mut pass);
+            sorter.encode(&mut pass, false);
         }
         context.queue.submit([encoder.finish()]);
         let bytes = 4 * keys.len() as u64;
-        let out = read_back(context, &[(sorter.keys(), bytes), (sorter.values(), bytes)])?;
+        let out = read_back(
+            context,
+            &[
+                (sorter.sorted_keys(), bytes),
+                (sorter.sorted_values(), bytes),
+            ],
+        )?;
         context.take_error()?;
         Ok((
             bytemuck::pod_collect_to_vec(&out[0]),
             bytemuck::pod_collect_to_vec(&out[1]),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wgsl_digits_and_block_are_the_ones_the_histogram_is_sized_for() {
+        let module = naga::front::wgsl::parse_str(super::super::RADIX_SORT).expect("parses");
+        let constant = |name: &str| {
+            let (_, c) = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("no {name}"));
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::U32(value)) => value,
+                ref other => panic!("{name} = {other:?}"),
+            }
+        };
+        assert_eq!(u64::from(constant("DIGITS")), DIGITS);
+        assert_eq!(DIGITS, 1 << BITS_PER_PASS);
+        assert_eq!(constant("BLOCK"), BLOCK);
+        assert_eq!(constant("ROUNDS") * WORKGROUP_SIZE, BLOCK);
     }
 }

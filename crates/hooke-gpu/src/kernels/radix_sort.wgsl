@@ -1,39 +1,29 @@
-// One pass of a stable LSD radix sort of (key, value) pairs on 4-bit digits, in three kernels:
-// `histogram` counts each block's digits, `scan` turns the counts (digit-major, then block)
+// One pass of a stable LSD radix sort of (key, value) pairs on 8-bit digits, in three kernels:
+// `count_digits` counts each block's digits, `scan` turns the counts (digit-major, then block)
 // into each block's first output slot per digit, and `scatter` moves every pair to its slot,
-// ranked within its block by its position so equal digits keep their order. A block is one
-// workgroup of WORKGROUP_SIZE pairs. hooke_gpu::radix_sort runs the passes, 4 key bits each.
-
-struct SortUniforms {
-    count: u32,
-    // The digit of a key is (key >> shift) & 15.
-    shift: u32,
-    block_count: u32,
-    pad: u32,
-}
+// ranked within its block by its position so equal digits keep their order. Blocks and the
+// histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
 
 @group(0) @binding(0) var<uniform> su: SortUniforms;
 @group(0) @binding(1) var<storage, read> keys_in: array<u32>;
 @group(0) @binding(2) var<storage, read> values_in: array<u32>;
 @group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(4) var<storage, read_write> values_out: array<u32>;
-// 16 counts per block, digit-major: entry digit * block_count + block.
-@group(0) @binding(5) var<storage, read_write> histogram: array<u32>;
 
-const DIGITS: u32 = 16u;
-// Bit masks of the block's members per digit: WORKGROUP_SIZE / 32 words each.
+// Bit masks of one round's members per digit: WORKGROUP_SIZE / 32 words each.
 const WORDS: u32 = 2u;
 
-var<workgroup> digit_counts: array<atomic<u32>, 16>;
-var<workgroup> members: array<atomic<u32>, 32>;
+var<workgroup> members: array<atomic<u32>, 512>;
+// The next output slot of each digit in this block, advanced round by round.
+var<workgroup> next_slot: array<u32, DIGITS>;
 var<workgroup> partial_sums: array<u32, WORKGROUP_SIZE>;
-
-fn block_index(group: vec3<u32>, groups: vec3<u32>) -> u32 {
-    return group.x + group.y * groups.x;
-}
 
 fn digit_of(key: u32) -> u32 {
     return (key >> su.shift) & (DIGITS - 1u);
+}
+
+fn entry_digit(i: u32) -> u32 {
+    return digit_of(keys_in[i]);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -42,23 +32,11 @@ fn count_digits(
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if lane < DIGITS {
-        atomicStore(&digit_counts[lane], 0u);
-    }
-    workgroupBarrier();
-    let block = block_index(group, groups);
-    let i = block * WORKGROUP_SIZE + lane;
-    if block < su.block_count && i < su.count {
-        atomicAdd(&digit_counts[digit_of(keys_in[i])], 1u);
-    }
-    workgroupBarrier();
-    if lane < DIGITS && block < su.block_count {
-        histogram[lane * su.block_count + block] = atomicLoad(&digit_counts[lane]);
-    }
+    count_block_digits(lane, block_index(group, groups), su.block_count, su.count);
 }
 
-// One workgroup: each invocation sums a contiguous run of the histogram, the 64 run totals
-// are scanned in shared memory, then each run is rewritten as exclusive prefix sums.
+// One workgroup: each invocation sums a contiguous run of the histogram, the run totals are
+// scanned in shared memory, then each run is rewritten as exclusive prefix sums.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scan(@builtin(local_invocation_index) lane: u32) {
     let length = DIGITS * su.block_count;
@@ -88,37 +66,64 @@ fn scan(@builtin(local_invocation_index) lane: u32) {
     }
 }
 
+// The block's pairs go out in ROUNDS rounds of WORKGROUP_SIZE, in order: a pair's slot is its
+// digit's next slot in the block plus the members of its digit before it in its round.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scatter(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if lane < DIGITS * WORDS {
-        atomicStore(&members[lane], 0u);
-    }
-    workgroupBarrier();
     let block = block_index(group, groups);
-    let i = block * WORKGROUP_SIZE + lane;
-    let valid = block < su.block_count && i < su.count;
-    var key = 0u;
-    var digit = 0u;
+    // Uniform across the workgroup, so the barriers below are reached by every invocation.
+    if block >= su.block_count {
+        return;
+    }
+    for (var d = lane; d < DIGITS; d += WORKGROUP_SIZE) {
+        next_slot[d] = histogram[d * su.block_count + block];
+    }
+    for (var w = lane; w < DIGITS * WORDS; w += WORKGROUP_SIZE) {
+        atomicStore(&members[w], 0u);
+    }
     let word = lane / 32u;
     let bit = lane % 32u;
-    if valid {
-        key = keys_in[i];
-        digit = digit_of(key);
-        atomicOr(&members[digit * WORDS + word], 1u << bit);
-    }
-    workgroupBarrier();
-    if valid {
-        // Rank: members of the same digit earlier in the block.
-        var rank = countOneBits(atomicLoad(&members[digit * WORDS + word]) & ((1u << bit) - 1u));
-        for (var w = 0u; w < word; w++) {
-            rank += countOneBits(atomicLoad(&members[digit * WORDS + w]));
+    for (var round = 0u; round < ROUNDS; round++) {
+        workgroupBarrier();
+        let i = block * BLOCK + round * WORKGROUP_SIZE + lane;
+        let valid = i < su.count;
+        var key = 0u;
+        var digit = 0u;
+        if valid {
+            key = keys_in[i];
+            digit = digit_of(key);
+            atomicOr(&members[digit * WORDS + word], 1u << bit);
         }
-        let slot = histogram[digit * su.block_count + block] + rank;
-        keys_out[slot] = key;
-        values_out[slot] = values_in[i];
+        workgroupBarrier();
+        var last = false;
+        var rank = 0u;
+        if valid {
+            let mine = atomicLoad(&members[digit * WORDS + word]);
+            rank = countOneBits(mine & ((1u << bit) - 1u));
+            var later = mine >> bit >> 1u;
+            for (var w = 0u; w < word; w++) {
+                rank += countOneBits(atomicLoad(&members[digit * WORDS + w]));
+            }
+            for (var w = word + 1u; w < WORDS; w++) {
+                later |= atomicLoad(&members[digit * WORDS + w]);
+            }
+            last = later == 0u;
+            let slot = next_slot[digit] + rank;
+            keys_out[slot] = key;
+            values_out[slot] = values_in[i];
+        }
+        workgroupBarrier();
+        if valid {
+            // Every member reads its digit's words above; now they are cleared for the next
+            // round, and the digit's last member of the round advances its next slot.
+            atomicStore(&members[digit * WORDS + word], 0u);
+            if last {
+                next_slot[digit] += rank + 1u;
+            }
+        }
     }
 }

@@ -1,13 +1,17 @@
 //! `self_collide.wgsl` (with `radix_sort.wgsl`): approximate self-collision, per staggered grid:
-//! cell keys, a radix sort, window corrections and their application, all recorded into one
-//! compute pass after the collider pass. Same rule as `hooke_core::selfcollide`.
+//! cell keys (after applying the previous grid's corrections, and counting the sort's first
+//! digits), a radix sort and window corrections; then the last grid's corrections are applied.
+//! All recorded into one compute pass after the collider pass. Same rule as
+//! `hooke_core::selfcollide`.
 
 use hooke_core::selfcollide::{self, SelfCollision};
 
 use super::radix_sort::RadixSort;
 use crate::GpuError;
 use crate::context::GpuContext;
-use crate::gpu::{bind_group, compute_pipeline, dispatch_in, storage, uniform, zeroed};
+use crate::gpu::{
+    WORKGROUP_SIZE, bind_group, compute_pipeline, dispatch_in, storage, uniform, zeroed,
+};
 use crate::layout::SelfUniforms;
 use crate::model::GpuModel;
 use crate::state::GpuState;
@@ -68,7 +72,8 @@ impl SelfCollidePass {
                         inverse_cell: (1.0 / config.cell_size) as f32,
                         offset: config.grid_offset(k),
                         key_bits,
-                        pad: [0; 2],
+                        apply_previous: u32::from(k > 0),
+                        block_count: sort.block_count(),
                     },
                 )
             })
@@ -98,9 +103,12 @@ impl SelfCollidePass {
                         &cell_keys.get_bind_group_layout(0),
                         &[
                             (0, u.as_entire_binding()),
-                            (1, target(current).as_entire_binding()),
                             (2, sort.keys().as_entire_binding()),
                             (3, sort.values().as_entire_binding()),
+                            (7, corrections.as_entire_binding()),
+                            (8, target(current).as_entire_binding()),
+                            (9, state.deltas.as_entire_binding()),
+                            (10, sort.histogram().as_entire_binding()),
                         ],
                     )
                 })
@@ -114,8 +122,8 @@ impl SelfCollidePass {
                 &[
                     (0, uniforms[0].as_entire_binding()),
                     (1, target(current).as_entire_binding()),
-                    (2, sort.keys().as_entire_binding()),
-                    (3, sort.values().as_entire_binding()),
+                    (2, sort.sorted_keys().as_entire_binding()),
+                    (3, sort.sorted_values().as_entire_binding()),
                     (4, gpu_model.scales.as_entire_binding()),
                     (5, offsets.as_entire_binding()),
                     (6, neighbors.as_entire_binding()),
@@ -157,13 +165,14 @@ impl SelfCollidePass {
         self.bytes
     }
 
-    /// Records every grid's passes for a step whose current position buffer is `current`.
-    /// Dispatches per step: per grid, the keys, the sort, the corrections and their
-    /// application.
+    /// Dispatches per step: per grid, the keys (which apply the previous grid's corrections
+    /// and count the sort's first digits), the rest of the sort and the corrections; then the
+    /// last grid's application.
     pub fn dispatches(&self) -> u32 {
-        self.key_groups.len() as u32 * (3 + self.sort.dispatches())
+        self.key_groups.len() as u32 * (2 + self.sort.dispatches(true)) + 1
     }
 
+    /// Records every grid's passes for a step whose current position buffer is `current`.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -175,12 +184,19 @@ impl SelfCollidePass {
             timestamp_writes,
         });
         let n = self.vertex_count;
+        // One workgroup per sort block.
+        let block_invocations = self.sort.block_count() * WORKGROUP_SIZE;
         for groups in &self.key_groups {
-            dispatch_in(&mut pass, &self.cell_keys, &groups[current], n);
-            self.sort.encode(&mut pass);
+            dispatch_in(
+                &mut pass,
+                &self.cell_keys,
+                &groups[current],
+                block_invocations,
+            );
+            self.sort.encode(&mut pass, true);
             dispatch_in(&mut pass, &self.correct, &self.correct_groups[current], n);
-            dispatch_in(&mut pass, &self.apply, &self.apply_groups[current], n);
         }
+        dispatch_in(&mut pass, &self.apply, &self.apply_groups[current], n);
     }
 }
 
@@ -191,7 +207,11 @@ mod tests {
     use hooke_core::diagnostics::relative_l2;
 
     use super::*;
-    use crate::kernels::testing::{context, read_vec3s, run, stretched_scene};
+    use std::path::Path;
+
+    use hooke_core::scene::{MeshSection, Scene, SceneFile};
+
+    use crate::kernels::testing::{context, read_vec3s, run};
     use crate::methods::GpuMethod;
 
     /// The same float32 pushes in the same sorted order; the push weights are `dt^2/m` here and
@@ -201,7 +221,16 @@ mod tests {
     #[test]
     fn self_collision_pass_parts_close_pairs_as_hooke_core_does() {
         let Some(context) = context() else { return };
-        let (scene, _) = stretched_scene();
+        // One to three sort passes (8, 16 and 24 key bits), one to 33 sort blocks.
+        for vertices in [100, 144, 3000, 33_000] {
+            let scene = SceneFile::benchmark(MeshSection::unit_irregular(vertices, 4), vertices)
+                .build(Path::new("kernel test"), true)
+                .expect("scene");
+            check_folded_sheet(&context, &scene);
+        }
+    }
+
+    fn check_folded_sheet(context: &GpuContext, scene: &Scene) {
         let config = SelfCollision::for_model(&scene.model);
         // The sheet folded along x = 0: its x > 0 half lies a quarter of the distance above the
         // other, so many unjoined pairs are too close.
@@ -219,19 +248,19 @@ mod tests {
             .map(|p| p.as_vec3().as_dvec3())
             .collect();
         let n = folded.len();
-        let model = GpuModel::new(&context, &scene.model, &scene.material, GpuMethod::Gather)
+        let model = GpuModel::new(context, &scene.model, &scene.material, GpuMethod::Gather)
             .expect("model");
-        model.write_uniforms(&context);
-        let mut gpu_state = GpuState::new(&context, n);
+        model.write_uniforms(context);
+        let mut gpu_state = GpuState::new(context, n);
         // The pass works on the buffer a step writes: put the folded sheet in both.
         let at_rest = State::at_rest(folded.clone());
-        gpu_state.write(&context, &at_rest);
+        gpu_state.write(context, &at_rest);
         gpu_state.advance();
-        gpu_state.write(&context, &at_rest);
+        gpu_state.write(context, &at_rest);
         gpu_state.advance();
-        let pass = SelfCollidePass::new(&context, &model, &gpu_state, &config).expect("pass");
-        run(&context, |e| pass.encode(e, gpu_state.current, None));
-        let actual = read_vec3s(&context, &gpu_state.positions[1 - gpu_state.current], n);
+        let pass = SelfCollidePass::new(context, &model, &gpu_state, &config).expect("pass");
+        run(context, |e| pass.encode(e, gpu_state.current, None));
+        let actual = read_vec3s(context, &gpu_state.positions[1 - gpu_state.current], n);
         let mut expected: Vec<Vec3> = folded.iter().map(|p| p.as_vec3()).collect();
         let weights = selfcollide::inverse_masses(&scene.model);
         selfcollide::resolve(&mut expected, &weights, &scene.model.adjacency, &config);
@@ -241,8 +270,8 @@ mod tests {
             .zip(&folded)
             .filter(|(a, b)| a.distance(**b) > 1e-5)
             .count();
-        assert!(pushed > 20, "only {pushed} vertices pushed apart");
+        assert!(pushed > n / 20, "{n} vertices: only {pushed} pushed apart");
         let error = relative_l2(&actual, &expected);
-        assert!(error < TOLERANCE, "relative L2 {error:.2e}");
+        assert!(error < TOLERANCE, "{n} vertices: relative L2 {error:.2e}");
     }
 }

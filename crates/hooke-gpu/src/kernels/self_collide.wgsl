@@ -1,7 +1,9 @@
 // Approximate self-collision by binning (hooke_core::selfcollide, the same arithmetic): per
-// grid, `cell_keys` hashes each vertex's cell, the radix sort orders vertices by key,
-// `correct` tests each vertex against the same-cell vertices next to it in sorted order (at
-// most `window` each side) and finds how far it must move, and `apply` moves it (position and the step's motion). Runs after `collide`.
+// grid, `cell_keys` moves each vertex by the previous grid's correction, hashes its cell and
+// counts the first sort digits, the radix sort orders vertices by key, and `correct` tests each
+// vertex against the same-cell vertices next to it in sorted order (at most `window` each
+// side) and finds how far it must move. `apply` moves the vertices by the last grid's
+// corrections. Runs after `collide`. Blocks and the histogram are digits.wgsl's.
 
 // Mirrors `SelfUniforms` in self_collide.rs.
 struct SelfUniforms {
@@ -12,13 +14,17 @@ struct SelfUniforms {
     // This grid's shift, in cells, along each axis.
     offset: f32,
     key_bits: u32,
-    pad0: u32,
-    pad1: u32,
+    // 1 when `cell_keys` first applies the previous grid's corrections (every grid but the first).
+    apply_previous: u32,
+    // Sort blocks (digits.wgsl) over the vertices.
+    block_count: u32,
 }
 
 @group(0) @binding(0) var<uniform> cu: SelfUniforms;
-// This step's new positions (read by `cell_keys` and `correct`).
+// This step's new positions, read by `correct` (`moved` is the same buffer, for the kernels that
+// write it).
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+// In vertex order after `cell_keys`, in key order after the sort.
 @group(0) @binding(2) var<storage, read_write> keys: array<u32>;
 // Vertex ids: in vertex order after `cell_keys`, in key order after the sort.
 @group(0) @binding(3) var<storage, read_write> sorted: array<u32>;
@@ -27,7 +33,6 @@ struct SelfUniforms {
 @group(0) @binding(5) var<storage, read> offsets: array<u32>;
 @group(0) @binding(6) var<storage, read> neighbors: array<u32>;
 @group(0) @binding(7) var<storage, read_write> corrections: array<vec4<f32>>;
-// The same buffer as `positions`, written by `apply`.
 @group(0) @binding(8) var<storage, read_write> moved: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read_write> deltas: array<vec4<f32>>;
 
@@ -40,14 +45,39 @@ fn cell_key(p: vec3<f32>) -> u32 {
     return hash & ((1u << cu.key_bits) - 1u);
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn cell_keys(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let v = flat_index(id, groups);
-    if v >= cu.vertex_count {
-        return;
+// Moves `v` by its correction: position and the step's motion. Returns the new position.
+fn apply_correction(v: u32) -> vec3<f32> {
+    let c = corrections[v];
+    let x = moved[v].xyz + c.xyz;
+    moved[v] = vec4<f32>(x, 1.0);
+    deltas[v] = deltas[v] + c;
+    return x;
+}
+
+// Vertex `v`'s key for this grid, after moving it by the previous grid's correction (every
+// grid but the first); returns the sort's first digit, which `cell_keys` counts.
+fn entry_digit(v: u32) -> u32 {
+    var x: vec3<f32>;
+    if cu.apply_previous != 0u {
+        x = apply_correction(v);
+    } else {
+        x = moved[v].xyz;
     }
-    keys[v] = cell_key(positions[v].xyz);
+    let key = cell_key(x);
+    keys[v] = key;
     sorted[v] = v;
+    return key & (DIGITS - 1u);
+}
+
+// One sort block of vertices per workgroup, so the block's first-pass digit counts are
+// complete when it ends.
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn cell_keys(
+    @builtin(local_invocation_index) lane: u32,
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    count_block_digits(lane, block_index(group, groups), cu.block_count, cu.vertex_count);
 }
 
 fn joined(a: u32, b: u32) -> bool {
@@ -110,10 +140,7 @@ fn push(p: u32, q: u32, xp: vec3<f32>, wp: f32, d2: f32) -> vec3<f32> {
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn apply(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let v = flat_index(id, groups);
-    if v >= cu.vertex_count {
-        return;
+    if v < cu.vertex_count {
+        apply_correction(v);
     }
-    let c = corrections[v];
-    moved[v] = vec4<f32>(moved[v].xyz + c.xyz, 1.0);
-    deltas[v] = deltas[v] + c;
 }
