@@ -186,8 +186,14 @@ impl InstructionSet {
     /// The implementation actually used on this CPU.
     pub fn resolved_name(self) -> &'static str {
         #[cfg(target_arch = "x86_64")]
-        if self == Self::Best && Avx2::detect().is_some() {
-            return "avx2";
+        if self == Self::Best
+            && let Some(avx2) = Avx2::detect()
+        {
+            return if avx2.gathers_by_lane() {
+                "avx2, gathers by lane"
+            } else {
+                "avx2"
+            };
         }
         "portable"
     }
