@@ -119,9 +119,9 @@ mod avx2 {
 
     impl Avx2 {
         /// AVX2 if the CPU has it. On AMD processors gathers load lane by lane: their
-        /// `vgatherdps` is microcode that took the irregular bench mesh's gather step from
-        /// about 0.5 to 0.9 ms on this project's AMD EPYC VM. Other processors use the
-        /// instruction, unmeasured here.
+        /// `vgatherdps` is microcode, with which the irregular bench mesh's gather step took
+        /// 0.88-0.91 ms on this project's AMD EPYC VM against 0.36-0.60 ms lane by lane.
+        /// Other processors use the instruction (not measured against loads here).
         pub fn detect() -> Option<Self> {
             static LOAD_BY_LANE: OnceLock<bool> = OnceLock::new();
             std::arch::is_x86_feature_detected!("avx2").then(|| Self {
