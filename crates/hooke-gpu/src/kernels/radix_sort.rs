@@ -25,6 +25,9 @@ pub struct RadixSort {
     values: [wgpu::Buffer; 2],
     block_count: u32,
     histogram: wgpu::Buffer,
+    /// The kernel that writes the keys also counts the first pass's digits into `histogram`,
+    /// so the sort skips that count.
+    first_counted: bool,
     count_digits: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
@@ -35,7 +38,14 @@ pub struct RadixSort {
 
 impl RadixSort {
     /// Sorts on the low `key_bits` bits, rounded up to a multiple of 8 (one pass each).
-    pub fn new(context: &GpuContext, count: u32, key_bits: u32) -> Result<Self, GpuError> {
+    /// `first_counted`: the caller's kernel that writes the keys also counts the first pass's
+    /// digits into [`RadixSort::histogram`].
+    pub fn new(
+        context: &GpuContext,
+        count: u32,
+        key_bits: u32,
+        first_counted: bool,
+    ) -> Result<Self, GpuError> {
         let pass_count = key_bits.div_ceil(BITS_PER_PASS).max(1);
         let block_count = count.div_ceil(BLOCK).max(1);
         let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
@@ -100,6 +110,7 @@ impl RadixSort {
             values,
             block_count,
             histogram,
+            first_counted,
             count_digits,
             scan,
             scatter,
@@ -145,18 +156,17 @@ impl RadixSort {
     }
 
     /// Dispatches the sort records: count, scan and scatter per digit, less the first count
-    /// when the caller's kernel counted it (see [`RadixSort::encode`]).
-    pub fn dispatches(&self, first_counted: bool) -> u32 {
-        3 * self.passes.len() as u32 - u32::from(first_counted)
+    /// when the caller's kernel counts it.
+    pub fn dispatches(&self) -> u32 {
+        3 * self.passes.len() as u32 - u32::from(self.first_counted)
     }
 
-    /// Records the sort into an open compute pass. `first_counted`: the kernel that wrote the
-    /// keys also counted the first pass's digits into [`RadixSort::histogram`].
-    pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>, first_counted: bool) {
+    /// Records the sort into an open compute pass.
+    pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
         // One workgroup per block.
         let block_invocations = self.block_count * WORKGROUP_SIZE;
         for (index, [count_group, scan_group, scatter_group]) in self.passes.iter().enumerate() {
-            if index > 0 || !first_counted {
+            if index > 0 || !self.first_counted {
                 dispatch_in(pass, &self.count_digits, count_group, block_invocations);
             }
             dispatch_in(pass, &self.scan, scan_group, WORKGROUP_SIZE);
@@ -171,7 +181,7 @@ impl RadixSort {
         keys: &[u32],
         key_bits: u32,
     ) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
-        let sorter = Self::new(context, keys.len() as u32, key_bits)?;
+        let sorter = Self::new(context, keys.len() as u32, key_bits, false)?;
         let indices: Vec<u32> = (0..keys.len() as u32).collect();
         context
             .queue
@@ -189,7 +199,7 @@ impl RadixSort {
                 label: Some("radix sort"),
                 timestamp_writes: None,
             });
-            sorter.encode(&mut pass, false);
+            sorter.encode(&mut pass);
         }
         context.queue.submit([encoder.finish()]);
         let bytes = 4 * keys.len() as u64;

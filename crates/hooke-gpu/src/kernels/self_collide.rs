@@ -42,7 +42,8 @@ impl SelfCollidePass {
         let model = &gpu_model.model;
         let n = model.vertex_count() as u32;
         let key_bits = selfcollide::key_bits(model.vertex_count());
-        let sort = RadixSort::new(context, n, key_bits)?;
+        // `cell_keys` counts the first digits.
+        let sort = RadixSort::new(context, n, key_bits, true)?;
         let offsets = storage(
             context,
             "self-collision adjacency offsets",
@@ -169,7 +170,7 @@ impl SelfCollidePass {
     /// and count the sort's first digits), the rest of the sort and the corrections; then the
     /// last grid's application.
     pub fn dispatches(&self) -> u32 {
-        self.key_groups.len() as u32 * (2 + self.sort.dispatches(true)) + 1
+        self.key_groups.len() as u32 * (2 + self.sort.dispatches()) + 1
     }
 
     /// Records every grid's passes for a step whose current position buffer is `current`.
@@ -193,7 +194,7 @@ impl SelfCollidePass {
                 &groups[current],
                 block_invocations,
             );
-            self.sort.encode(&mut pass, true);
+            self.sort.encode(&mut pass);
             dispatch_in(&mut pass, &self.correct, &self.correct_groups[current], n);
         }
         dispatch_in(&mut pass, &self.apply, &self.apply_groups[current], n);
