@@ -15,14 +15,17 @@ impl CpuSolver {
         let Some(config) = self.self_collision else {
             return;
         };
-        let internal = &self.numbering.internal;
-        let mut positions: Vec<Vec3> = internal
-            .iter()
-            .map(|&k| Vec3::from_array(self.next.get(k as usize)))
-            .collect();
+        let (internal, next) = (&self.numbering.internal, &self.next);
+        let positions = &mut self.self_collision_positions;
+        positions.clear();
+        positions.par_extend(
+            internal
+                .par_iter()
+                .map(|&k| Vec3::from_array(next.get(k as usize))),
+        );
         let moves = selfcollide::resolve_with(
             &mut self.binning,
-            &mut positions,
+            positions,
             &self.inverse_masses,
             &self.model.adjacency,
             &config,

@@ -136,6 +136,8 @@ pub struct CpuSolver {
     self_collision: Option<SelfCollision>,
     /// Self-collision's sort buffers, kept between steps.
     binning: selfcollide::Binning,
+    /// Scratch of `self_collide`: the new positions in mesh order.
+    self_collision_positions: Vec<Vec3>,
     external: Option<ExternalForces>,
     extra_forces: Soa,
     /// Per-vertex net force, used only by the phase-separated step.
@@ -193,6 +195,7 @@ impl CpuSolver {
             control: Control::default(),
             self_collision: model.collision.self_collision,
             binning: selfcollide::Binning::default(),
+            self_collision_positions: Vec::new(),
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),

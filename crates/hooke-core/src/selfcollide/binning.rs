@@ -30,6 +30,10 @@ const PARALLEL_FROM: usize = 1 << 12;
 /// Widest digit: 4096 counters per chunk stay in the first-level cache.
 const MAX_DIGIT_BITS: u32 = 12;
 
+/// Keys computed at a time before they are counted: a batch is a plain loop the compiler
+/// vectorises, which a key computed and counted per entry is not.
+const KEY_BATCH: usize = 256;
+
 /// Buffers kept from one sort to the next, so a step allocates nothing.
 #[derive(Debug, Default)]
 pub struct Binning {
@@ -62,9 +66,15 @@ impl Chunks {
 }
 
 impl Binning {
-    /// Sorts vertices `0..n` by `key(v)`, every key below `2^bits`, stably; returns the entries
-    /// in sorted order.
-    pub fn sort(&mut self, n: usize, bits: u32, key: impl Fn(usize) -> u32 + Sync) -> &[Entry] {
+    /// Sorts vertices `0..n` by their keys, every key below `2^bits`, stably; returns the
+    /// entries in sorted order. `keys(first, out)` writes the keys of vertices `first..` into
+    /// `out`, a batch at a time.
+    pub fn sort(
+        &mut self,
+        n: usize,
+        bits: u32,
+        keys: impl Fn(usize, &mut [u32]) + Sync,
+    ) -> &[Entry] {
         let passes = bits.div_ceil(MAX_DIGIT_BITS).max(1);
         let width = bits.div_ceil(passes).max(1);
         let (buckets, mask) = (1usize << width, (1u32 << width) - 1);
@@ -82,11 +92,15 @@ impl Binning {
             .zip(self.counts.par_chunks_mut(buckets))
             .enumerate()
             .for_each(|(c, (entries, counts))| {
-                let start = c * chunks.len;
-                for (i, entry) in entries.iter_mut().enumerate() {
-                    let k = key(start + i);
-                    *entry = (Entry::from(k) << 32) | (start + i) as Entry;
-                    counts[(k & mask) as usize] += 1;
+                let mut batch = [0u32; KEY_BATCH];
+                for (b, entries) in entries.chunks_mut(KEY_BATCH).enumerate() {
+                    let first = c * chunks.len + b * KEY_BATCH;
+                    let batch = &mut batch[..entries.len()];
+                    keys(first, batch);
+                    for ((i, entry), &k) in entries.iter_mut().enumerate().zip(&*batch) {
+                        *entry = (Entry::from(k) << 32) | (first + i) as Entry;
+                        counts[(k & mask) as usize] += 1;
+                    }
                 }
             });
         for pass in 0..passes {
@@ -99,6 +113,13 @@ impl Binning {
             std::mem::swap(&mut self.entries, &mut self.spare);
         }
         &self.entries
+    }
+
+    /// [`Binning::sort`] of vertices `0..keys.len()` by the keys given.
+    pub fn sort_keys(&mut self, keys: &[u32], bits: u32) -> &[Entry] {
+        self.sort(keys.len(), bits, |first, out| {
+            out.copy_from_slice(&keys[first..first + out.len()]);
+        })
     }
 }
 
@@ -178,7 +199,7 @@ mod tests {
             let mut expected: Vec<(u32, u32)> = keys.iter().copied().zip(0..).collect();
             expected.sort_by_key(|&(key, _)| key);
             let sorted: Vec<(u32, u32)> = binning
-                .sort(n, bits, |v| keys[v])
+                .sort_keys(&keys, bits)
                 .iter()
                 .map(|&e| (key_of(e), vertex_of(e)))
                 .collect();
@@ -196,11 +217,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .expect("pool");
-            pool.install(|| {
-                Binning::default()
-                    .sort(keys.len(), 20, |v| keys[v])
-                    .to_vec()
-            })
+            pool.install(|| Binning::default().sort_keys(&keys, 20).to_vec())
         };
         let one = sort_on(1);
         assert_eq!(one, sort_on(3));
