@@ -246,7 +246,7 @@ impl CpuSolver {
         let (topology, forces) = match &self.topology {
             Topology::Gather(t) => (
                 t.neighbor.bytes()
-                    + std::mem::size_of_val(t.rest_length.as_slice())
+                    + t.rest_length.bytes()
                     + t.stiffness.bytes()
                     + std::mem::size_of_val(t.slices.slice_rows.as_slice()),
                 0,
@@ -258,7 +258,7 @@ impl CpuSolver {
             } => (
                 springs.a.bytes()
                     + springs.b.bytes()
-                    + std::mem::size_of_val(springs.rest_length.as_slice())
+                    + springs.rest_length.bytes()
                     + springs.stiffness.bytes()
                     + incidence.entry.bytes()
                     + std::mem::size_of_val(incidence.slices.slice_rows.as_slice()),
@@ -280,9 +280,7 @@ impl CpuSolver {
         vertex_streams
             + match &self.topology {
                 Topology::Gather(t) => {
-                    t.neighbor.bytes()
-                        + std::mem::size_of_val(t.rest_length.as_slice())
-                        + t.stiffness.bytes()
+                    t.neighbor.bytes() + t.rest_length.bytes() + t.stiffness.bytes()
                 }
                 Topology::Scatter {
                     springs,
@@ -291,7 +289,7 @@ impl CpuSolver {
                 } => {
                     springs.a.bytes()
                         + springs.b.bytes()
-                        + std::mem::size_of_val(springs.rest_length.as_slice())
+                        + springs.rest_length.bytes()
                         + springs.stiffness.bytes()
                         + incidence.entry.bytes()
                         // written once by the force pass, read back by the accumulation

@@ -3,7 +3,9 @@
 
 use hooke_core::Model;
 
-use crate::kernels::{B_END, GatherTable, IncidenceTable, IndexRows, Soa, SpringTable, Stiffness};
+use crate::kernels::{
+    B_END, GatherTable, IncidenceTable, IndexRows, Soa, SpringTable, Stiffness, ValueRows,
+};
 use crate::layout::{LANES, Numbering, Slices};
 use crate::{Method, Topology};
 
@@ -74,7 +76,7 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
             u32::MAX,
             numbering.padded_len,
         ),
-        rest_length: into_blocks(entries.iter().map(|e| e.1).collect()),
+        rest_length: ValueRows::new(into_blocks(entries.iter().map(|e| e.1).collect())),
         stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
     }
 }
@@ -180,12 +182,12 @@ pub(crate) fn scatter_tables(
     let springs = SpringTable {
         a: end_rows(0),
         b: end_rows(1),
-        rest_length: into_blocks(
+        rest_length: ValueRows::new(into_blocks(
             order
                 .iter()
                 .map(|&s| model.rest_lengths[s as usize] as f32)
                 .collect(),
-        ),
+        )),
         stiffness: stiffness_of(model, || {
             order
                 .iter()
@@ -209,4 +211,43 @@ pub(crate) fn scatter_tables(
         entry: IndexRows::new(into_blocks(entries), !B_END, zero_slot as usize + LANES),
     };
     (springs, incidence)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use hooke_core::scene::{MeshSection, SceneFile};
+
+    use super::*;
+    use crate::layout::VertexOrder;
+
+    fn table_of(mesh: MeshSection, vertices: u32) -> GatherTable {
+        let scene = SceneFile::benchmark(mesh, vertices)
+            .build(Path::new("bench"), true)
+            .expect("benchmark scene builds");
+        let numbering = Numbering::new(&scene.model, VertexOrder::Auto);
+        gather_table(&scene.model, &numbering)
+    }
+
+    #[test]
+    fn a_grid_streams_most_rest_lengths_as_one_value_per_row_and_an_irregular_mesh_none() {
+        let grid = table_of(MeshSection::unit_grid(64, 64), 64 * 64);
+        let share = grid.rest_length.uniform_share();
+        // Rows along the boundary (an eighth at 64^2) mix rest lengths and padding.
+        assert!(share > 0.8, "uniform rows of a grid: {share}");
+        // 5 bytes a uniform row instead of 32.
+        let whole = grid.rest_length.len() * std::mem::size_of::<crate::kernels::Block>();
+        assert!(
+            grid.rest_length.bytes() < whole / 3,
+            "{}",
+            grid.rest_length.bytes()
+        );
+        let irregular = table_of(MeshSection::unit_irregular(4096, 1), 4096);
+        assert_eq!(irregular.rest_length.uniform_share(), 0.0);
+        assert_eq!(
+            irregular.rest_length.bytes(),
+            irregular.rest_length.len() * std::mem::size_of::<crate::kernels::Block>()
+        );
+    }
 }
