@@ -284,6 +284,66 @@ fn bench_prints_a_row_per_mesh_and_method() {
 }
 
 #[test]
+fn bench_times_every_solver_in_each_round_and_reports_the_median_round() {
+    let args = |format: &'static str| {
+        hooke(&[
+            "bench",
+            "--sizes",
+            "16",
+            "--irregular",
+            "0",
+            "--shuffled",
+            "0",
+            "--steps",
+            "10",
+            "--warmup",
+            "1",
+            "--rounds",
+            "3",
+            "--format",
+            format,
+        ])
+    };
+    let result = args("json");
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    assert_eq!(report["rounds"], 3);
+    let rows = report["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 2, "gather and scatter");
+    for row in rows {
+        let mut rounds: Vec<f64> = row["total_rounds_ms"]
+            .as_array()
+            .expect("rounds")
+            .iter()
+            .map(|r| r.as_f64().expect("a number"))
+            .collect();
+        assert_eq!(rounds.len(), 3, "{row}");
+        assert!(rounds.iter().all(|r| *r > 0.0), "{row}");
+        rounds.sort_by(f64::total_cmp);
+        assert_eq!(row["total_ms"].as_f64(), Some(rounds[1]), "{row}");
+    }
+    // The table shows each total with its fastest and slowest round.
+    let table = args("table");
+    assert!(table.status.success(), "{}", text(&table.stderr));
+    let table = text(&table.stdout);
+    assert!(table.contains("median of 3 interleaved rounds"), "{table}");
+    assert!(
+        table
+            .lines()
+            .filter(|l| l.starts_with("| grid 16^2"))
+            .all(|l| l.contains('(') && l.contains(')')),
+        "{table}"
+    );
+    let refused = hooke(&["bench", "--sizes", "16", "--rounds", "0"]);
+    assert!(!refused.status.success());
+    assert!(
+        text(&refused.stderr).contains("--rounds"),
+        "{}",
+        text(&refused.stderr)
+    );
+}
+
+#[test]
 fn bench_adds_bending_springs_to_every_workload() {
     let result = hooke(&[
         "bench",

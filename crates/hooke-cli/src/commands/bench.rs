@@ -7,6 +7,12 @@
 //! phases are timed one by one (per-phase columns; the fused step keeps each vertex's forces in
 //! registers and makes one pass instead of two or three). All times are medians per step.
 //!
+//! With `--rounds R`, every solver is built and warmed up first, and then the fused steps are
+//! timed in R rounds, each round timing every solver in turn: a machine whose speed drifts
+//! (a shared VM's can move by 2x over seconds) slows every row of a round alike, so rows
+//! compare fairly, and the spread over rounds says how far one figure can be trusted. "total"
+//! is then the median of the rounds' medians, shown with their range.
+//!
 //! The bandwidth floor is the bytes one fused step must move at least once divided by the copy
 //! bandwidth measured on the spot, with the same threads, on a buffer as large as those bytes:
 //! it is the time a perfect memory-bound step would take at the cache level where the data lives.
@@ -78,6 +84,10 @@ pub struct BenchArgs {
     /// Untimed steps before timing.
     #[arg(long, default_value_t = 50)]
     pub warmup: u32,
+    /// Rounds of fused-step timing, every solver in turn each round: total is the median of
+    /// the rounds, and the table shows their range.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub rounds: u32,
     #[arg(long, value_enum, default_value_t = OutputFormat::Table)]
     pub format: OutputFormat,
 }
@@ -101,7 +111,10 @@ struct Row {
     /// Collider and self-collision passes, when the workload has them.
     collision_ms: Option<f64>,
     phased_total_ms: f64,
+    /// Median of the rounds' medians of the fused step.
     total_ms: f64,
+    /// Each round's median of the fused step, in the order run.
+    total_rounds_ms: Vec<f64>,
     springs_per_second: f64,
     bytes_per_step: usize,
     /// GPU: the compute dispatches and draws one step records.
@@ -118,6 +131,7 @@ struct Report {
     threads: usize,
     gpu: Option<String>,
     steps: u32,
+    rounds: u32,
     rows: Vec<Row>,
     /// Methods whose accumulation could not hold this workload's forces (fixed point, which
     /// clamps and reports): "mesh method: why". The others still ran.
@@ -167,33 +181,15 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         BenchBackend::Gpu | BenchBackend::All => Some(open_gpu()?),
     };
     let run_cpu = args.backend != BenchBackend::Gpu;
-    let mut rows = Vec::new();
+    let mut scenes = Vec::new();
+    let mut timed: Vec<Timed> = Vec::new();
     let mut skipped = Vec::new();
     for (name, workload) in meshes {
-        let mut scene = benchmark_scene(workload).with_context(|| format!("building {name}"))?;
+        let scene = workload_scene(&name, workload, args)?;
         let name = match args.bending {
             Some(_) => format!("{name} + bending"),
             None => name,
         };
-        if let Some(fraction) = args.bending {
-            let stiffness = fraction * scene.model.stiffnesses[0];
-            let pairs = scene.mesh.bending_pairs();
-            scene
-                .model
-                .add_bending_springs(&pairs, stiffness, 1.0)
-                .map_err(|e| anyhow::anyhow!("--bending {fraction}: {e}"))?;
-        }
-        if let Some(grids) = args.self_collision {
-            anyhow::ensure!(
-                (1..=selfcollide::MAX_GRIDS).contains(&grids),
-                "--self-collision: {grids} grids is outside 1..={}",
-                selfcollide::MAX_GRIDS
-            );
-            scene.model.collision.self_collision = Some(SelfCollision {
-                grids,
-                ..SelfCollision::for_model(&scene.model)
-            });
-        }
         let gpu_choices = gpu
             .iter()
             .flat_map(|_| GpuMethod::all().into_iter().map(SolverChoice::Gpu));
@@ -213,22 +209,39 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                     return Err(error).with_context(|| format!("{name}, {}", choice.name()));
                 }
             };
-            let row = match measure(&name, &scene, &mut simulation, args, &copy_pool) {
-                Ok(row) => row,
-                Err(error) if out_of_range(&error) => {
-                    let why = format!("{name} {}: {error:#}", choice.name());
-                    eprintln!("  skipped {why}");
-                    skipped.push(why);
-                    continue;
-                }
-                Err(error) => {
-                    return Err(error.context(format!("{name}, {}", simulation.describe())));
-                }
+            let warmed = simulation.step(args.warmup).map_err(anyhow::Error::from);
+            let entry = Timed {
+                name: name.clone(),
+                scene: scenes.len(),
+                simulation,
+                rounds_ms: Vec::new(),
             };
+            if entry.keep(warmed, &mut skipped)?.is_some() {
+                timed.push(entry);
+            }
+        }
+        scenes.push(scene);
+    }
+    for _ in 0..args.rounds {
+        let mut kept = Vec::with_capacity(timed.len());
+        for mut entry in timed {
+            let timing = median_step_ms(&mut entry.simulation, args);
+            if let Some(ms) = entry.keep(timing, &mut skipped)? {
+                entry.rounds_ms.push(ms);
+                kept.push(entry);
+            }
+        }
+        timed = kept;
+    }
+    let mut rows = Vec::new();
+    for mut entry in timed {
+        let scene = &scenes[entry.scene];
+        let measured = measure(&mut entry, scene, args, &copy_pool);
+        if let Some(row) = entry.keep(measured, &mut skipped)? {
             if args.format == OutputFormat::Table {
                 eprintln!(
-                    "  {name} {} {}: {:.3} ms/step",
-                    row.backend, row.method, row.total_ms
+                    "  {} {} {}: {:.3} ms/step",
+                    row.mesh, row.backend, row.method, row.total_ms
                 );
             }
             rows.push(row);
@@ -240,6 +253,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         threads,
         gpu: gpu.as_ref().map(|c| c.describe()),
         steps: args.steps,
+        rounds: args.rounds,
         rows,
         skipped,
     };
@@ -248,6 +262,67 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         OutputFormat::Table => print_report(&report),
     }
     Ok(())
+}
+
+/// The benchmark scene of `workload`, with the bending springs and self-collision asked for.
+fn workload_scene(name: &str, workload: Workload, args: &BenchArgs) -> anyhow::Result<Scene> {
+    let mut scene = benchmark_scene(workload).with_context(|| format!("building {name}"))?;
+    if let Some(fraction) = args.bending {
+        let stiffness = fraction * scene.model.stiffnesses[0];
+        let pairs = scene.mesh.bending_pairs();
+        scene
+            .model
+            .add_bending_springs(&pairs, stiffness, 1.0)
+            .map_err(|e| anyhow::anyhow!("--bending {fraction}: {e}"))?;
+    }
+    if let Some(grids) = args.self_collision {
+        anyhow::ensure!(
+            (1..=selfcollide::MAX_GRIDS).contains(&grids),
+            "--self-collision: {grids} grids is outside 1..={}",
+            selfcollide::MAX_GRIDS
+        );
+        scene.model.collision.self_collision = Some(SelfCollision {
+            grids,
+            ..SelfCollision::for_model(&scene.model)
+        });
+    }
+    Ok(scene)
+}
+
+/// A solver being timed: its workload, and its fused step's median in each round so far.
+struct Timed {
+    name: String,
+    /// Index of its scene.
+    scene: usize,
+    simulation: Simulation,
+    rounds_ms: Vec<f64>,
+}
+
+impl Timed {
+    /// `result`'s value; `None`, noted in `skipped`, if the method's accumulation could not
+    /// hold this workload's forces (the others still run); any other failure ends the bench.
+    fn keep<T>(
+        &self,
+        result: anyhow::Result<T>,
+        skipped: &mut Vec<String>,
+    ) -> anyhow::Result<Option<T>> {
+        match result {
+            Ok(value) => Ok(Some(value)),
+            Err(error) if out_of_range(&error) => {
+                let why = format!(
+                    "{} {}: {error:#}",
+                    self.name,
+                    self.simulation.choice().name()
+                );
+                eprintln!("  skipped {why}");
+                skipped.push(why);
+                Ok(None)
+            }
+            Err(error) => {
+                Err(error.context(format!("{}, {}", self.name, self.simulation.describe())))
+            }
+        }
+    }
 }
 
 /// True when a method failed because its accumulation's range could not hold the workload's
@@ -300,11 +375,14 @@ fn benchmark_scene(workload: Workload) -> anyhow::Result<Scene> {
 /// Fused steps per timing sample.
 const STEPS_PER_SAMPLE: u32 = 10;
 
-fn median(mut samples: Vec<Duration>) -> f64 {
-    samples.sort_unstable();
-    samples
-        .get(samples.len() / 2)
-        .map_or(0.0, |d| d.as_secs_f64() * 1e3)
+fn median(samples: Vec<Duration>) -> f64 {
+    median_ms(samples.iter().map(|d| d.as_secs_f64() * 1e3).collect())
+}
+
+/// The middle value (the upper of the two middle ones for an even count); 0 for none.
+fn median_ms(mut values: Vec<f64>) -> f64 {
+    values.sort_unstable_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// Per-phase medians of phase-separated steps, ms.
@@ -330,11 +408,10 @@ impl PhaseMedians {
     }
 }
 
-/// Median time per step of `--steps` steps after `--warmup`, timed in batches as `hooke run`
-/// steps (a lone step would also time waking the CPU's worker threads). On the GPU each batch
-/// includes one small status read-back, as every `hooke run` batch has.
+/// Median time per step of `--steps` steps, timed in batches as `hooke run` steps (a lone
+/// step would also time waking the CPU's worker threads). On the GPU each batch includes one
+/// small status read-back, as every `hooke run` batch has.
 fn median_step_ms(simulation: &mut Simulation, args: &BenchArgs) -> anyhow::Result<f64> {
-    simulation.step(args.warmup)?;
     let batches = args.steps.div_ceil(STEPS_PER_SAMPLE);
     let mut totals = Vec::with_capacity(batches as usize);
     for _ in 0..batches {
@@ -345,15 +422,15 @@ fn median_step_ms(simulation: &mut Simulation, args: &BenchArgs) -> anyhow::Resu
     Ok(median(totals))
 }
 
-/// One row: the fused step's median, then `--steps` phase-timed steps, on any solver.
+/// One row: the rounds' fused-step medians, then `--steps` phase-timed steps, on any solver.
 fn measure(
-    name: &str,
+    timed: &mut Timed,
     scene: &Scene,
-    simulation: &mut Simulation,
     args: &BenchArgs,
     copy_pool: &rayon::ThreadPool,
 ) -> anyhow::Result<Row> {
-    let total_ms = median_step_ms(simulation, args)?;
+    let simulation = &mut timed.simulation;
+    let total_ms = median_ms(timed.rounds_ms.clone());
     let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
     let mut source = TimingSource::WallClock;
     for _ in 0..args.steps {
@@ -396,7 +473,7 @@ fn measure(
         .gpu_solver_mut()
         .map(|solver| solver.dispatches_per_step());
     Ok(Row {
-        mesh: name.to_owned(),
+        mesh: timed.name.clone(),
         vertices: scene.model.vertex_count(),
         springs: scene.model.spring_count(),
         backend,
@@ -410,6 +487,7 @@ fn measure(
         collision_ms: medians.collision,
         phased_total_ms: medians.total,
         total_ms,
+        total_rounds_ms: timed.rounds_ms.clone(),
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step,
         dispatches_per_step,
@@ -455,7 +533,7 @@ fn cpu_name() -> String {
 
 fn print_report(report: &Report) {
     println!(
-        "hooke bench: cpu {} ({} threads, {} SIMD){}; medians of {} steps",
+        "hooke bench: cpu {} ({} threads, {} SIMD){}; medians of {} steps{}",
         report.cpu,
         report.threads,
         report.simd,
@@ -464,7 +542,15 @@ fn print_report(report: &Report) {
             .as_ref()
             .map(|g| format!(", gpu {g}"))
             .unwrap_or_default(),
-        report.steps
+        report.steps,
+        if report.rounds > 1 {
+            format!(
+                "; total: the median of {} interleaved rounds (fastest-slowest round)",
+                report.rounds
+            )
+        } else {
+            String::new()
+        }
     );
     let mut t = Table::new();
     t.set_header(vec![
@@ -499,7 +585,14 @@ fn print_report(report: &Report) {
                 .map_or("-".to_owned(), |i| format!("{i:.3}")),
             r.collision_ms.map_or("-".to_owned(), |c| format!("{c:.3}")),
             format!("{:.3}", r.phased_total_ms),
-            format!("{:.3}", r.total_ms),
+            if report.rounds > 1 {
+                let rounds = r.total_rounds_ms.iter().copied();
+                let fastest = rounds.clone().fold(f64::INFINITY, f64::min);
+                let slowest = rounds.fold(f64::NEG_INFINITY, f64::max);
+                format!("{:.3} ({fastest:.3}-{slowest:.3})", r.total_ms)
+            } else {
+                format!("{:.3}", r.total_ms)
+            },
             format!("{:.0}", r.springs_per_second / 1e6),
             bytes(r.bytes_per_step),
             r.bandwidth_floor_ms
