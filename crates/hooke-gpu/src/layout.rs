@@ -32,7 +32,10 @@ pub struct StepUniforms {
     pub dynamic_count: u32,
     /// The material's stiffness scale: every spring's stiffness is its record's times this.
     pub stiffness_scale: f32,
-    pub pad: [u32; 2],
+    /// Every spring's stiffness when all are alike (read by the gather kernel's entry point
+    /// for that case; 0 otherwise).
+    pub uniform_stiffness: f32,
+    pub pad: u32,
 }
 
 /// One collider (`Collider` in WGSL): a sphere, plane or capsule, scripted or a dynamic ball.
@@ -184,6 +187,7 @@ mod tests {
             offset_of!(StepUniforms, collision_thickness),
             offset_of!(StepUniforms, dynamic_count),
             offset_of!(StepUniforms, stiffness_scale),
+            offset_of!(StepUniforms, uniform_stiffness),
         ];
         assert_eq!(&offsets[..host.len()], host.map(|o| o as u32).as_slice());
 

@@ -131,6 +131,7 @@ impl GpuModel {
                     .count() as u32,
                 collision_thickness: model.collision.thickness as f32,
                 stiffness_scale: material.stiffness_scale as f32,
+                uniform_stiffness: uniform_stiffness(model).unwrap_or(0.0),
                 ..Default::default()
             },
             triangles: storage(context, "wind triangles", &triangles, none),
@@ -282,6 +283,16 @@ impl GpuModel {
             GpuTopology::Gather { .. } => None,
         }
     }
+}
+
+/// Every spring's stiffness as a float32 record holds it, when all springs have the same one.
+pub fn uniform_stiffness(model: &Model) -> Option<f32> {
+    let first = *model.stiffnesses.first()? as f32;
+    model
+        .stiffnesses
+        .iter()
+        .all(|&k| k as f32 == first)
+        .then_some(first)
 }
 
 /// A spring stretched to twice its rest length: the force scale fixed-point and 8-bit

@@ -144,7 +144,9 @@ impl GpuSolver {
         let extra_forces = &external.extra_forces;
         let force = match method {
             GpuMethod::Gather => {
-                Forces::Gather(GatherIntegrate::new(ctx, &gpu_model, &state, extra_forces)?)
+                let may_tear = model.tearing.is_some();
+                let gather = GatherIntegrate::new(ctx, &gpu_model, &state, extra_forces, may_tear)?;
+                Forces::Gather(gather)
             }
             GpuMethod::Scatter(accumulation) => {
                 let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
@@ -646,6 +648,14 @@ impl Solver for GpuSolver {
                 .get_or_insert_with(|| tear::broken_flags(context, spring_count));
             let tear = Tear::new(context, &self.model, &self.state, &never, flags);
             self.tear = Some(tear.map_err(device)?);
+            // The entries now carry the tears' zero stiffness, which the gather must read.
+            if let Forces::Gather(gather) = &mut self.force
+                && gather.uniform_stiffness
+            {
+                let extra = &self.external.extra_forces;
+                *gather = GatherIntegrate::new(context, &self.model, &self.state, extra, true)
+                    .map_err(device)?;
+            }
         }
         if let Some(tear) = &self.tear {
             tear.write(&self.context, &broken);

@@ -463,3 +463,81 @@ fn the_viewer_counts_torn_springs_without_waiting_and_takes_another_threshold_ru
     }
     context.take_error().expect("no GPU validation error");
 }
+
+/// A sheet of springs of one stiffness, pinned at its corners, that cannot tear: the GPU's
+/// gather then takes the stiffness from its uniforms instead of from each entry.
+fn uniform_sheet() -> Scene {
+    let text = r#"
+[mesh]
+generator = "grid"
+resolution = [12, 12]
+size = [0.5, 0.5]
+plane = "xz"
+center = [0.0, 1.0, 0.0]
+
+[material]
+mass = { total = 0.05 }
+stiffness = 100.0
+damping = 0.001
+
+[pins]
+select = ["corners"]
+
+[simulation]
+dt = "auto"
+steps = 1
+gravity = [0.0, -9.81, 0.0]
+"#;
+    SceneFile::parse(text, "sheet.toml")
+        .and_then(|file| file.build(Path::new("sheet.toml"), false))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn a_gpu_gather_of_one_stiffness_takes_a_restored_snapshots_tears() {
+    let context = test_context();
+    if context.is_none() {
+        return;
+    }
+    let scene = uniform_sheet();
+    let mut cpu_run = Simulation::from_scene(&scene, cpu(Method::Gather), None).expect("solver");
+    cpu_run.step(100).expect("stable");
+    let mut snapshot = cpu_run.snapshot().expect("snapshot");
+    // Cut every spring that crosses the sheet's middle (x = 0).
+    let positions = &scene.model.initial_positions;
+    snapshot.broken_springs = (0..scene.model.spring_count() as u32)
+        .filter(|&s| {
+            let [a, b] = scene.model.spring_ends[s as usize];
+            (positions[a as usize].x < 0.0) != (positions[b as usize].x < 0.0)
+        })
+        .collect();
+    assert!(snapshot.broken_springs.len() > 12);
+    let after = |choice: SolverChoice| {
+        let mut simulation =
+            Simulation::from_scene(&scene, choice, context.clone()).expect("solver");
+        simulation.restore(&snapshot).expect("restore");
+        simulation.step(200).expect("stable");
+        simulation.state().expect("state").positions
+    };
+    let on_cpu = after(cpu(Method::Gather));
+    let on_gpu = after(SolverChoice::Gpu(GpuMethod::Gather));
+    let largest = |a: &[glam::DVec3], b: &[glam::DVec3]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| p.distance(*q))
+            .fold(0.0, f64::max)
+    };
+    // The cut halves sag apart; springs still pulling would hold them together.
+    cpu_run.step(200).expect("stable");
+    let uncut = cpu_run.state().expect("state").positions;
+    assert!(
+        largest(&on_cpu, &uncut) > 0.01,
+        "{}",
+        largest(&on_cpu, &uncut)
+    );
+    assert!(
+        largest(&on_gpu, &on_cpu) < 1e-5,
+        "{}",
+        largest(&on_gpu, &on_cpu)
+    );
+}

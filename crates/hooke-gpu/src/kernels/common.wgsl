@@ -26,8 +26,9 @@ struct StepUniforms {
     dynamic_count: u32,
     // Every spring's stiffness is its record's times this (the material's stiffness scale).
     stiffness_scale: f32,
-    pad1: u32,
-    pad2: u32,
+    // Every spring's stiffness, when all are alike and none can tear (see gather_integrate).
+    uniform_stiffness: f32,
+    pad: u32,
 }
 
 // Mirrors `GpuStatus` in layout.rs: written by the kernels, read back by the solver.
