@@ -26,6 +26,13 @@ pub fn shipped_scene(name: &str) -> Scene {
         .unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The scene in the TOML `text`, built as `hooke run` builds a file named `name`.
+pub fn scene_from_text(text: &str, name: &str) -> Scene {
+    SceneFile::parse(text, name)
+        .and_then(|file| file.build(Path::new(name), false))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// The float64 reference solver of `scene`, driven by the scene's control.
 pub fn reference(scene: &Scene) -> ReferenceSolver {
     let mut solver = ReferenceSolver::new(&scene.model, &scene.material);

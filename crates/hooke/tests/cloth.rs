@@ -1,15 +1,15 @@
 //! Cloth features on every solver, against the float64 reference: bending springs.
 
-use std::path::Path;
 use std::sync::Arc;
 
 use glam::DVec3;
 use hooke::{Simulation, SolverChoice};
 use hooke_core::State;
 use hooke_core::diagnostics::relative_l2;
-use hooke_core::scene::{Scene, SceneFile};
+use hooke_core::scene::Scene;
 use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod, test_context, wgpu};
+use hooke_testkit::scene_from_text;
 
 /// Every float32 solver: CPU gather and scatter, and every GPU method when there is a GPU but
 /// blend-rgba8, which sums forces in 8-bit fixed point (the paper's precision finding) and
@@ -34,9 +34,7 @@ fn float32_choices(gpu: bool) -> Vec<SolverChoice> {
 }
 
 fn build(text: &str) -> Scene {
-    SceneFile::parse(text, "test.toml")
-        .and_then(|file| file.build(Path::new("test.toml"), false))
-        .unwrap_or_else(|e| panic!("{e}"))
+    scene_from_text(text, "test.toml")
 }
 
 /// A strip of tissue (1 g) 0.6 m long and 0.1 m wide along x, clamped by its first two

@@ -3,16 +3,16 @@
 //! below the threshold, torn springs survive a snapshot and a state file, and the renderer stops
 //! drawing torn triangles.
 
-use std::path::Path;
 use std::sync::Arc;
 
 use hooke::state_file::{load_state, save_state};
 use hooke::{OffscreenRun, Simulation, SolverChoice};
 use hooke_core::diagnostics::max_strain;
-use hooke_core::scene::{Scene, SceneFile};
+use hooke_core::scene::Scene;
 use hooke_core::{Model, State};
 use hooke_cpu::{CpuOptions, Method};
 use hooke_gpu::{Accumulation, GpuContext, GpuMethod, test_context};
+use hooke_testkit::scene_from_text;
 
 fn cpu(method: Method) -> SolverChoice {
     SolverChoice::Cpu(CpuOptions {
@@ -66,9 +66,7 @@ path = [[0, 0, 0, 0], [0.5, {pull}, 0, 0]]
 
 {tearing}"#
     );
-    SceneFile::parse(&text, "strip.toml")
-        .and_then(|file| file.build(Path::new("strip.toml"), false))
-        .unwrap_or_else(|e| panic!("{e}"))
+    scene_from_text(&text, "strip.toml")
 }
 
 /// Simulated time: the pull and a little after.
@@ -488,9 +486,7 @@ dt = "auto"
 steps = 1
 gravity = [0.0, -9.81, 0.0]
 "#;
-    SceneFile::parse(text, "sheet.toml")
-        .and_then(|file| file.build(Path::new("sheet.toml"), false))
-        .unwrap_or_else(|e| panic!("{e}"))
+    scene_from_text(text, "sheet.toml")
 }
 
 #[test]
