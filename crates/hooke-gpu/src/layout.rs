@@ -53,6 +53,30 @@ pub struct GpuCollider {
     pub script: [f32; 4],
 }
 
+/// One kind of spring of a stencil (`StencilEntry` in `gather_integrate.wgsl`, see
+/// [`crate::stencil`]): the offset from a vertex's index to its neighbour's, the rest length
+/// and the stiffness.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuStencilEntry {
+    pub offset: i32,
+    pub rest_length: f32,
+    pub stiffness: f32,
+    pub pad: u32,
+}
+
+/// Places for kinds in [`GpuStencil`] (at most [`crate::stencil::MAX_KINDS`] are used).
+pub const STENCIL_KINDS: usize = 24;
+
+/// A stencil's kinds (`Stencil` in `gather_integrate.wgsl`): the first `len` are used.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GpuStencil {
+    pub kinds: [GpuStencilEntry; STENCIL_KINDS],
+    pub len: u32,
+    pub pad: [u32; 3],
+}
+
 /// A spring (`Spring` in WGSL).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -204,6 +228,12 @@ mod tests {
         let (size, offsets) = wgsl_layout("Spring");
         assert_eq!(size as usize, size_of::<GpuSpring>());
         assert_eq!(offsets, [0, 4, 8, 12]);
+        let (size, offsets) = wgsl_layout("StencilEntry");
+        assert_eq!(size as usize, size_of::<GpuStencilEntry>());
+        assert_eq!(offsets, [0, 4, 8, 12]);
+        let (size, offsets) = wgsl_layout("Stencil");
+        assert_eq!(size as usize, size_of::<GpuStencil>());
+        assert_eq!(offsets[..2], [0, offset_of!(GpuStencil, len) as u32]);
         let (size, _) = wgsl_layout("GatherEntry");
         assert_eq!(size as usize, size_of::<GatherEntry>());
         let (size, offsets) = layout_in(crate::kernels::TEAR, "TearTest");

@@ -15,6 +15,7 @@ mod model;
 pub mod render;
 mod solver;
 mod state;
+mod stencil;
 mod step;
 
 pub use context::{

@@ -7,6 +7,7 @@ use crate::context::{GpuContext, GpuError};
 use crate::gpu::{self, storage, zeroed};
 use crate::layout::{GatherEntry, GpuSpring, StepUniforms};
 use crate::methods::{Accumulation, GpuMethod};
+use crate::stencil::Stencil;
 
 /// Texels per row of the blend force target.
 pub(crate) const BLEND_WIDTH: u32 = 2048;
@@ -47,8 +48,11 @@ pub struct GpuModel {
     /// The host copy of the step uniforms; [`GpuModel::write_uniforms`] sends it.
     pub uniforms: StepUniforms,
     pub uniform_buffer: wgpu::Buffer,
-    /// Per vertex `(dt^2 / m, 1 - c dt / m, 0, 0)`, zero for pinned vertices.
+    /// Per vertex `(dt^2 / m, 1 - c dt / m, stencil mask, 0)`, the first two zero for pinned
+    /// vertices (the mask: [`Stencil::mask_as_float`], else 0).
     pub scales: wgpu::Buffer,
+    /// The springs as a stencil, for the gather of a structured mesh that cannot tear.
+    pub stencil: Option<Stencil>,
     pub topology: GpuTopology,
     /// Triangles as `vec4<u32>` (for wind).
     pub triangles: wgpu::Buffer,
@@ -142,6 +146,9 @@ impl GpuModel {
             method,
             uniform_buffer,
             scales,
+            stencil: (method == GpuMethod::Gather && model.tearing.is_none())
+                .then(|| Stencil::of(model))
+                .flatten(),
             topology,
             topology_bytes,
         };
@@ -175,19 +182,22 @@ impl GpuModel {
             gravity,
             ..
         } = self.material;
+        let stencil = self.stencil.as_ref();
         let scales: Vec<[f32; 4]> = self
             .model
             .masses
             .iter()
             .zip(&self.model.pinned)
-            .map(|(m, pinned)| {
+            .enumerate()
+            .map(|(v, (m, pinned))| {
+                let mask = stencil.map_or(0.0, |s| s.mask_as_float(v));
                 if *pinned {
-                    [0.0; 4]
+                    [0.0, 0.0, mask, 0.0]
                 } else {
                     [
                         (dt * dt / m) as f32,
                         (1.0 - damping * dt / m) as f32,
-                        0.0,
+                        mask,
                         0.0,
                     ]
                 }

@@ -28,7 +28,7 @@ use crate::kernels::balls::Balls;
 use crate::kernels::collide::Collide;
 use crate::kernels::external::External;
 use crate::kernels::force_springs::ForceSprings;
-use crate::kernels::gather_integrate::GatherIntegrate;
+use crate::kernels::gather_integrate::{GatherIntegrate, GatherVariant};
 use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
@@ -557,8 +557,12 @@ impl GpuSolver {
 
 impl Solver for GpuSolver {
     fn describe(&self) -> String {
+        let springs = match &self.force {
+            Forces::Gather(gather) => format!("{}, ", gather.variant.name()),
+            _ => String::new(),
+        };
         format!(
-            "gpu {} (f32, {})",
+            "gpu {} (f32, {springs}{})",
             self.model.method.name(),
             self.context.info.name
         )
@@ -650,7 +654,7 @@ impl Solver for GpuSolver {
             self.tear = Some(tear.map_err(device)?);
             // The entries now carry the tears' zero stiffness, which the gather must read.
             if let Forces::Gather(gather) = &mut self.force
-                && gather.uniform_stiffness
+                && gather.variant != GatherVariant::Entries
             {
                 let extra = &self.external.extra_forces;
                 *gather = GatherIntegrate::new(context, &self.model, &self.state, extra, true)

@@ -4,22 +4,47 @@
 
 use super::integrate::verlet_bindings;
 use crate::context::{GpuContext, GpuError};
-use crate::gpu::Kernel;
+use crate::gpu::{Kernel, uniform};
+use crate::layout::GpuStencil;
 use crate::model::{GpuModel, GpuTopology, uniform_stiffness};
 use crate::state::GpuState;
+
+/// Where the kernel finds each spring: the three entry points of `gather_integrate.wgsl`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GatherVariant {
+    /// Each spring's CSR entry: neighbour, rest length and stiffness.
+    Entries,
+    /// The CSR entry's neighbour and rest length, one stiffness for all from the uniforms.
+    UniformStiffness,
+    /// A mask per vertex over a structured mesh's few kinds of spring (`crate::stencil`).
+    Stencil,
+}
+
+impl GatherVariant {
+    /// For the solver's description.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Entries => "CSR entries",
+            Self::UniformStiffness => "CSR entries, one stiffness",
+            Self::Stencil => "stencil",
+        }
+    }
+}
 
 #[derive(Debug)]
 pub struct GatherIntegrate {
     pub kernel: Kernel,
-    /// Whether the kernel takes the stiffness from the uniforms (see [`GatherIntegrate::new`]).
-    pub uniform_stiffness: bool,
+    pub variant: GatherVariant,
+    /// The stencil's kinds, which the kernel's bind groups hold ([`GatherVariant::Stencil`]).
+    _stencil: Option<wgpu::Buffer>,
 }
 
 impl GatherIntegrate {
-    /// With `may_tear` false and every spring of the model at one stiffness, the kernel takes
-    /// it from the uniforms instead of reading it from each entry: a third fewer bytes per
-    /// entry (10% less time per step at 256^2 on lavapipe). Springs that can tear need the
-    /// entries' stiffness, which tearing zeroes.
+    /// With `may_tear` false, the kernel reads less than each spring's CSR entry where the
+    /// model allows: a structured mesh (a grid) as a `Stencil`, a mask per vertex; else,
+    /// when every spring has one stiffness, 8 of each entry's 12 bytes. Springs that can tear
+    /// need the entries' stiffness, which tearing zeroes. The same floats are summed in the same
+    /// order every way, so all give the same bits.
     pub fn new(
         context: &GpuContext,
         model: &GpuModel,
@@ -32,27 +57,51 @@ impl GatherIntegrate {
                 "the gather step needs the gather adjacency".into(),
             ));
         };
-        let uniform_stiffness = !may_tear && uniform_stiffness(&model.model).is_some();
+        let stencil = model.stencil.as_ref().filter(|_| !may_tear);
+        let variant = match stencil {
+            Some(_) => GatherVariant::Stencil,
+            None if !may_tear && uniform_stiffness(&model.model).is_some() => {
+                GatherVariant::UniformStiffness
+            }
+            None => GatherVariant::Entries,
+        };
+        // The masks travel in the integration scales (see `GpuModel::scales`).
+        let kinds = stencil.map(|stencil| {
+            uniform(
+                context,
+                &GpuStencil {
+                    kinds: stencil.kinds,
+                    len: stencil.len as u32,
+                    pad: [0; 3],
+                },
+            )
+        });
         let kernel = Kernel::new(
             context,
             "gather and integrate",
             super::GATHER_INTEGRATE,
-            if uniform_stiffness {
-                "uniform_stiffness"
-            } else {
-                "main"
+            match variant {
+                GatherVariant::Entries => "main",
+                GatherVariant::UniformStiffness => "uniform_stiffness",
+                GatherVariant::Stencil => "stencil",
             },
             model.uniforms.vertex_count,
             |current| {
                 let mut resources = verlet_bindings(model, state, extra_forces, current);
-                resources.push((5, rows.as_entire_binding()));
-                resources.push((8, entries.as_entire_binding()));
+                match &kinds {
+                    Some(kinds) => resources.push((9, kinds.as_entire_binding())),
+                    None => {
+                        resources.push((5, rows.as_entire_binding()));
+                        resources.push((8, entries.as_entire_binding()));
+                    }
+                }
                 resources
             },
         )?;
         Ok(Self {
             kernel,
-            uniform_stiffness,
+            variant,
+            _stencil: kinds,
         })
     }
 }
@@ -63,9 +112,11 @@ mod tests {
 
     use super::*;
     use crate::gpu::zeroed;
+    use hooke_core::scene::MeshSection;
+
     use crate::kernels::testing::{
-        assert_next_positions, context, damped_on_gpu, expected_verlet_step, read_vec3s,
-        reference_spring_forces, run,
+        assert_next_positions, context, damped_on_gpu, damped_on_gpu_from, expected_verlet_step,
+        read_vec3s, reference_spring_forces, run, stretched,
     };
     use crate::methods::GpuMethod;
     use crate::model::vec4s;
@@ -77,29 +128,40 @@ mod tests {
     #[test]
     fn one_pass_sums_each_vertex_springs_and_takes_the_reference_verlet_step() {
         let Some(context) = context() else { return };
-        let (scene, seen, model, gpu_state) = damped_on_gpu(&context);
-        let n = scene.model.vertex_count();
-        let extra = zeroed(&context, "extra", vec4s(n), wgpu::BufferUsages::empty());
-        let springs = reference_spring_forces(&scene.model, &seen.positions);
-        let expected = expected_verlet_step(&scene, &seen, &springs, &vec![DVec3::ZERO; n]);
-        let next = &gpu_state.positions[1 - gpu_state.current];
+        let irregular = damped_on_gpu(&context);
+        let grid = damped_on_gpu_from(&context, stretched(MeshSection::unit_grid(13, 11), 143));
+        let runs = [
+            (&irregular, true, GatherVariant::Entries),
+            (&irregular, false, GatherVariant::UniformStiffness),
+            (&grid, true, GatherVariant::Entries),
+            (&grid, false, GatherVariant::Stencil),
+        ];
         let mut results = Vec::new();
-        // Both entry points: the stiffness from each entry, and from the uniforms.
-        for may_tear in [true, false] {
-            // Each run updates the deltas in place: start both from the same state.
-            gpu_state.write(&context, &seen);
-            let gather = GatherIntegrate::new(&context, &model, &gpu_state, &extra, may_tear)
-                .expect("kernel");
-            assert_eq!(gather.uniform_stiffness, !may_tear);
+        for ((scene, seen, model, gpu_state), may_tear, variant) in runs {
+            let n = scene.model.vertex_count();
+            let extra = zeroed(&context, "extra", vec4s(n), wgpu::BufferUsages::empty());
+            let springs = reference_spring_forces(&scene.model, &seen.positions);
+            let expected = expected_verlet_step(scene, seen, &springs, &vec![DVec3::ZERO; n]);
+            // Each run updates the deltas in place: start each from the same state.
+            gpu_state.write(&context, seen);
+            let gather =
+                GatherIntegrate::new(&context, model, gpu_state, &extra, may_tear).expect("kernel");
+            assert_eq!(gather.variant, variant);
             run(&context, |e| {
                 gather.kernel.encode(e, gpu_state.current, None)
             });
-            assert_next_positions(&context, &gpu_state, &expected, TOLERANCE_M);
+            assert_next_positions(&context, gpu_state, &expected, TOLERANCE_M);
+            let next = &gpu_state.positions[1 - gpu_state.current];
             results.push(read_vec3s(&context, next, n));
         }
-        assert_eq!(
-            results[0], results[1],
-            "the two entry points give the same bits"
+        // (Not assert_eq: a failure would print every position.)
+        assert!(
+            results[0] == results[1],
+            "both ways of reading CSR entries give the same bits"
+        );
+        assert!(
+            results[2] == results[3],
+            "the stencil gives the CSR entries' bits"
         );
     }
 
@@ -113,6 +175,6 @@ mod tests {
         let extra = zeroed(&context, "extra", vec4s(1), wgpu::BufferUsages::empty());
         let gather =
             GatherIntegrate::new(&context, &model, &gpu_state, &extra, false).expect("kernel");
-        assert!(!gather.uniform_stiffness);
+        assert_eq!(gather.variant, GatherVariant::Entries);
     }
 }

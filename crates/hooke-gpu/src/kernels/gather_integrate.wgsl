@@ -3,10 +3,13 @@
 // of a workgroup loop the same number of times, and advances at once (`verlet.wgsl`). The
 // net force never leaves the invocation: one pass per step, no per-vertex force buffer.
 //
-// Two entry points: `main` reads each spring's stiffness from its entry; `uniform_stiffness`,
+// Three entry points: `main` reads each spring's stiffness from its entry; `uniform_stiffness`,
 // for models whose springs all have one stiffness and cannot tear (nothing rewrites their
-// entries), takes it from the uniforms and reads 8 of each entry's 12 bytes. The same float
-// goes into the same arithmetic, so both give the same bits.
+// entries), takes it from the uniforms and reads 8 of each entry's 12 bytes; `stencil`, for
+// structured meshes that cannot tear (a grid: see stencil.rs), reads one mask per vertex (from
+// the integration scales it loads anyway) and takes each spring's neighbour offset, rest length
+// and stiffness from a small uniform table.
+// The same floats go into the same arithmetic in the same order, so all give the same bits.
 
 struct GatherEntry {
     neighbor: u32,
@@ -49,6 +52,46 @@ fn gather_and_integrate(slot: u32, uniform: bool) {
         }
         let neighbor = positions[entries[k].neighbor].xyz;
         force += spring_force(x, neighbor, stiffness * u.stiffness_scale, entries[k].rest_length);
+    }
+    integrate_vertex(vertex, x, force);
+}
+
+// One kind of spring of a structured mesh (mirrors `GpuStencilEntry` in layout.rs).
+struct StencilEntry {
+    offset: i32,
+    rest_length: f32,
+    stiffness: f32,
+    pad: u32,
+}
+
+// Mirrors `GpuStencil` in layout.rs: the first `len` kinds are used.
+struct Stencil {
+    kinds: array<StencilEntry, 24>,
+    len: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(9) var<uniform> stencil_kinds: Stencil;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn stencil(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let vertex = flat_index(id, groups);
+    if vertex >= u.vertex_count {
+        return;
+    }
+    let x = positions[vertex].xyz;
+    var force = vec3<f32>(0.0);
+    // Bit k set if the vertex has a spring of kind k: the mantissa of its scales' z (stencil.rs).
+    let mask = bitcast<u32>(scales[vertex].z) & 0x7fffffu;
+    // Lowest kind first: the order the vertex's CSR row lists its springs in.
+    for (var k = 0u; k < stencil_kinds.len; k++) {
+        if (mask & (1u << k)) != 0u {
+            let kind = stencil_kinds.kinds[k];
+            let neighbor = positions[u32(i32(vertex) + kind.offset)].xyz;
+            force += spring_force(x, neighbor, kind.stiffness * u.stiffness_scale, kind.rest_length);
+        }
     }
     integrate_vertex(vertex, x, force);
 }

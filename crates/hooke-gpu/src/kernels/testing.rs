@@ -22,7 +22,12 @@ pub use crate::test_context as context;
 /// A 12 x 12 irregular cloth (valences 3..10) and a state in which every vertex is moved off
 /// its rest place and moving, so every spring pulls or pushes.
 pub fn stretched_scene() -> (Scene, State) {
-    let scene = SceneFile::benchmark(MeshSection::unit_irregular(144, 4), 144)
+    stretched(MeshSection::unit_irregular(144, 4), 144)
+}
+
+/// `mesh` (of `vertices` vertices) as the benchmark's cloth, stretched as [`stretched_scene`].
+pub fn stretched(mesh: MeshSection, vertices: u32) -> (Scene, State) {
+    let scene = SceneFile::benchmark(mesh, vertices)
         .build(Path::new("kernel test"), true)
         .expect("scene");
     let shake = |v: usize, k: f64| {
@@ -57,7 +62,14 @@ pub fn stretched_scene() -> (Scene, State) {
 /// The stretched scene with damping 0.05, laid out for gather on the GPU with its state
 /// written: the scene, the state as float32 holds it, the model and the state buffers.
 pub fn damped_on_gpu(context: &GpuContext) -> (Scene, State, GpuModel, GpuState) {
-    let (mut scene, state) = stretched_scene();
+    damped_on_gpu_from(context, stretched_scene())
+}
+
+/// [`damped_on_gpu`] of a scene and state of one's own.
+pub fn damped_on_gpu_from(
+    context: &GpuContext,
+    (mut scene, state): (Scene, State),
+) -> (Scene, State, GpuModel, GpuState) {
     scene.material.damping = 0.05;
     let n = scene.model.vertex_count();
     let model =
