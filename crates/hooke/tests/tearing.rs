@@ -463,12 +463,13 @@ fn the_viewer_counts_torn_springs_without_waiting_and_takes_another_threshold_ru
 }
 
 /// A sheet of springs of one stiffness, pinned at its corners, that cannot tear: the GPU's
-/// gather then takes the stiffness from its uniforms instead of from each entry.
-fn uniform_sheet() -> Scene {
+/// gather then reads less than each spring's entry. `mesh` is the mesh section's generator
+/// lines: a grid's springs become a stencil; an irregular mesh's keep their entries, the
+/// stiffness taken from the uniforms.
+fn uniform_sheet(mesh: &str) -> Scene {
     let text = r#"
 [mesh]
-generator = "grid"
-resolution = [12, 12]
+MESH
 size = [0.5, 0.5]
 plane = "xz"
 center = [0.0, 1.0, 0.0]
@@ -486,7 +487,7 @@ dt = "auto"
 steps = 1
 gravity = [0.0, -9.81, 0.0]
 "#;
-    scene_from_text(text, "sheet.toml")
+    scene_from_text(&text.replace("MESH", mesh), "sheet.toml")
 }
 
 #[test]
@@ -495,8 +496,29 @@ fn a_gpu_gather_of_one_stiffness_takes_a_restored_snapshots_tears() {
     if context.is_none() {
         return;
     }
-    let scene = uniform_sheet();
-    let mut cpu_run = Simulation::from_scene(&scene, cpu(Method::Gather), None).expect("solver");
+    for (mesh, variant) in [
+        ("generator = \"grid\"\nresolution = [12, 12]", "stencil"),
+        (
+            "generator = \"irregular\"\nvertices = 144\nseed = 3",
+            "one stiffness",
+        ),
+    ] {
+        let scene = uniform_sheet(mesh);
+        let gpu = Simulation::from_scene(
+            &scene,
+            SolverChoice::Gpu(GpuMethod::Gather),
+            context.clone(),
+        )
+        .expect("solver");
+        assert!(gpu.describe().contains(variant), "{}", gpu.describe());
+        check_restored_tears(&scene, &context);
+    }
+}
+
+/// A snapshot of `scene` with the springs across its middle cut, restored on the CPU and on
+/// the GPU (whose solver could not tear): the halves part alike.
+fn check_restored_tears(scene: &Scene, context: &Option<Arc<GpuContext>>) {
+    let mut cpu_run = Simulation::from_scene(scene, cpu(Method::Gather), None).expect("solver");
     cpu_run.step(100).expect("stable");
     let mut snapshot = cpu_run.snapshot().expect("snapshot");
     // Cut every spring that crosses the sheet's middle (x = 0).
@@ -510,7 +532,7 @@ fn a_gpu_gather_of_one_stiffness_takes_a_restored_snapshots_tears() {
     assert!(snapshot.broken_springs.len() > 12);
     let after = |choice: SolverChoice| {
         let mut simulation =
-            Simulation::from_scene(&scene, choice, context.clone()).expect("solver");
+            Simulation::from_scene(scene, choice, context.clone()).expect("solver");
         simulation.restore(&snapshot).expect("restore");
         simulation.step(200).expect("stable");
         simulation.state().expect("state").positions
