@@ -5,7 +5,7 @@ use hooke_core::{Material, Model};
 
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::{self, storage, zeroed};
-use crate::layout::{GatherEntry, GpuSpring, StepUniforms};
+use crate::layout::{GatherEntry, GpuSpring, GpuStencil, StepUniforms};
 use crate::methods::{Accumulation, GpuMethod};
 use crate::stencil::Stencil;
 
@@ -33,6 +33,10 @@ pub enum GpuTopology {
         rows: wgpu::Buffer,
         entries: wgpu::Buffer,
     },
+    /// The gather of a structured mesh that cannot tear: [`GpuModel::stencil`]'s kinds, no
+    /// CSR rows ([`GpuModel::use_gather_entries`] builds them when a snapshot's tears need
+    /// them).
+    Stencil,
     /// One record per spring.
     Scatter { springs: wgpu::Buffer },
 }
@@ -73,7 +77,6 @@ impl GpuModel {
     ) -> Result<Self, GpuError> {
         let n = model.vertex_count();
         gpu::check_binding_size(context, "positions", vec4s(n))?;
-        gpu::check_binding_size(context, "spring forces", vec4s(model.spring_count()))?;
         let uniform_buffer = context.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("step uniforms"),
             size: std::mem::size_of::<StepUniforms>() as u64,
@@ -87,32 +90,23 @@ impl GpuModel {
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let none = wgpu::BufferUsages::empty();
-        // Tearing's restore rewrites the records.
-        let copy_dst = wgpu::BufferUsages::COPY_DST;
+        let stencil = (method == GpuMethod::Gather && model.tearing.is_none())
+            .then(|| Stencil::of(model))
+            .flatten();
         let (topology, topology_bytes) = match method {
-            GpuMethod::Gather => {
-                let order = valence_sorted_order(model);
-                let mut rows: Vec<[u32; 2]> = Vec::with_capacity(n + 1);
-                let mut first = 0u32;
-                for &v in &order {
-                    rows.push([v, first]);
-                    first += model.adjacency.valence(v as usize);
-                }
-                rows.push([u32::MAX, first]);
-                let entries = gather_entries(model, &order);
-                gpu::check_binding_size(context, "gather adjacency", bytes_of(&entries))?;
-                let bytes = bytes_of(&rows) + bytes_of(&entries);
-                let topology = GpuTopology::Gather {
-                    rows: storage(context, "gather rows", &rows, none),
-                    entries: storage(context, "gather entries", &entries, copy_dst),
-                };
-                (topology, bytes)
-            }
+            GpuMethod::Gather if stencil.is_some() => (
+                GpuTopology::Stencil,
+                std::mem::size_of::<GpuStencil>() as u64,
+            ),
+            GpuMethod::Gather => gather_adjacency(context, model)?,
             GpuMethod::Scatter(_) => {
+                // The force pass writes one force per spring (gather keeps them in registers).
+                gpu::check_binding_size(context, "spring forces", vec4s(model.spring_count()))?;
                 let springs = spring_records(model);
                 gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
                 let bytes = bytes_of(&springs);
-                let springs = storage(context, "springs", &springs, copy_dst);
+                // Tearing's restore rewrites the records.
+                let springs = storage(context, "springs", &springs, wgpu::BufferUsages::COPY_DST);
                 (GpuTopology::Scatter { springs }, bytes)
             }
         };
@@ -146,9 +140,7 @@ impl GpuModel {
             method,
             uniform_buffer,
             scales,
-            stencil: (method == GpuMethod::Gather && model.tearing.is_none())
-                .then(|| Stencil::of(model))
-                .flatten(),
+            stencil,
             topology,
             topology_bytes,
         };
@@ -236,11 +228,22 @@ impl GpuModel {
         };
     }
 
-    /// The buffer of the force records (gather entries or spring records).
-    pub fn force_records(&self) -> &wgpu::Buffer {
+    /// The gather's CSR rows in place of its stencil (a no-op for any other topology): what a
+    /// gather needs once a snapshot's tears zero some springs' stiffness.
+    pub fn use_gather_entries(&mut self, context: &GpuContext) -> Result<(), GpuError> {
+        if matches!(self.topology, GpuTopology::Stencil) {
+            (self.topology, self.topology_bytes) = gather_adjacency(context, &self.model)?;
+        }
+        Ok(())
+    }
+
+    /// The buffer of the force records (gather entries or spring records); none for a
+    /// stencil.
+    pub fn force_records(&self) -> Option<&wgpu::Buffer> {
         match &self.topology {
-            GpuTopology::Gather { entries, .. } => entries,
-            GpuTopology::Scatter { springs } => springs,
+            GpuTopology::Gather { entries, .. } => Some(entries),
+            GpuTopology::Scatter { springs } => Some(springs),
+            GpuTopology::Stencil => None,
         }
     }
 
@@ -249,7 +252,7 @@ impl GpuModel {
     pub fn stiffness_words(&self) -> Vec<[u32; 2]> {
         let model = &self.model;
         match &self.topology {
-            GpuTopology::Gather { .. } => {
+            GpuTopology::Gather { .. } | GpuTopology::Stencil => {
                 const WORDS: usize = std::mem::size_of::<GatherEntry>() / 4;
                 let stiffness = std::mem::offset_of!(GatherEntry, stiffness) / 4;
                 let mut words = vec![[u32::MAX; 2]; model.spring_count()];
@@ -277,20 +280,26 @@ impl GpuModel {
     /// stiffness and every other spring whole: what restoring a snapshot's tears needs.
     pub fn write_force_records(&self, context: &GpuContext, broken: &[bool]) {
         let torn = self.model.with_springs_broken(broken);
-        let bytes: Vec<u8> = match &self.topology {
-            GpuTopology::Gather { .. } => {
-                bytemuck::cast_slice(&gather_entries(&torn, &valence_sorted_order(&torn))).to_vec()
-            }
-            GpuTopology::Scatter { .. } => bytemuck::cast_slice(&spring_records(&torn)).to_vec(),
+        let (bytes, records): (Vec<u8>, _) = match &self.topology {
+            GpuTopology::Gather { entries, .. } => (
+                bytemuck::cast_slice(&gather_entries(&torn, &valence_sorted_order(&torn))).to_vec(),
+                entries,
+            ),
+            GpuTopology::Scatter { springs } => (
+                bytemuck::cast_slice(&spring_records(&torn)).to_vec(),
+                springs,
+            ),
+            // No records: a stencil's model has no tears (see `use_gather_entries`).
+            GpuTopology::Stencil => return,
         };
-        context.queue.write_buffer(self.force_records(), 0, &bytes);
+        context.queue.write_buffer(records, 0, &bytes);
     }
 
     /// The springs buffer of the scatter method.
     pub fn springs(&self) -> Option<&wgpu::Buffer> {
         match &self.topology {
             GpuTopology::Scatter { springs } => Some(springs),
-            GpuTopology::Gather { .. } => None,
+            GpuTopology::Gather { .. } | GpuTopology::Stencil => None,
         }
     }
 }
@@ -313,6 +322,33 @@ fn force_range(model: &Model, stiffness_scale: f64) -> f64 {
         .map(|s| model.stiffness(s, stiffness_scale) * model.rest_lengths[s])
         .fold(0.0, f64::max)
         .max(f64::MIN_POSITIVE)
+}
+
+/// The gather's CSR rows in valence-sorted order (the paper's layout) and their bytes.
+fn gather_adjacency(context: &GpuContext, model: &Model) -> Result<(GpuTopology, u64), GpuError> {
+    let order = valence_sorted_order(model);
+    let mut rows: Vec<[u32; 2]> = Vec::with_capacity(order.len() + 1);
+    let mut first = 0u32;
+    for &v in &order {
+        rows.push([v, first]);
+        first += model.adjacency.valence(v as usize);
+    }
+    rows.push([u32::MAX, first]);
+    let entries = gather_entries(model, &order);
+    gpu::check_binding_size(context, "gather adjacency", bytes_of(&entries))?;
+    let bytes = bytes_of(&rows) + bytes_of(&entries);
+    let none = wgpu::BufferUsages::empty();
+    let topology = GpuTopology::Gather {
+        rows: storage(context, "gather rows", &rows, none),
+        // Tearing's restore rewrites the records.
+        entries: storage(
+            context,
+            "gather entries",
+            &entries,
+            wgpu::BufferUsages::COPY_DST,
+        ),
+    };
+    Ok((topology, bytes))
 }
 
 /// Valence-sorted processing order (the paper's layout): slot -> vertex.

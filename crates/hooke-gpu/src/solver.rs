@@ -647,6 +647,8 @@ impl Solver for GpuSolver {
                 max_stretch: f64::INFINITY,
             };
             let context = &self.context;
+            // A stencil has no records for the tears' zero stiffness.
+            self.model.use_gather_entries(context).map_err(device)?;
             let flags = self
                 .broken
                 .get_or_insert_with(|| tear::broken_flags(context, spring_count));

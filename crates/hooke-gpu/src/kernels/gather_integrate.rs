@@ -52,30 +52,39 @@ impl GatherIntegrate {
         extra_forces: &wgpu::Buffer,
         may_tear: bool,
     ) -> Result<Self, GpuError> {
-        let GpuTopology::Gather { rows, entries } = &model.topology else {
-            return Err(GpuError::Validation(
-                "the gather step needs the gather adjacency".into(),
-            ));
-        };
-        let stencil = model.stencil.as_ref().filter(|_| !may_tear);
-        let variant = match stencil {
-            Some(_) => GatherVariant::Stencil,
-            None if !may_tear && uniform_stiffness(&model.model).is_some() => {
+        let variant = match &model.topology {
+            GpuTopology::Stencil if !may_tear => GatherVariant::Stencil,
+            GpuTopology::Gather { .. }
+                if !may_tear && uniform_stiffness(&model.model).is_some() =>
+            {
                 GatherVariant::UniformStiffness
             }
-            None => GatherVariant::Entries,
+            GpuTopology::Gather { .. } => GatherVariant::Entries,
+            _ => {
+                return Err(GpuError::Validation(
+                    "the gather step needs the gather adjacency (or, for springs that cannot \
+                     tear, a stencil)"
+                        .into(),
+                ));
+            }
         };
         // The masks travel in the integration scales (see `GpuModel::scales`).
-        let kinds = stencil.map(|stencil| {
-            uniform(
+        let kinds = match (&model.topology, &model.stencil) {
+            (GpuTopology::Stencil, Some(stencil)) => Some(uniform(
                 context,
                 &GpuStencil {
                     kinds: stencil.kinds,
                     len: stencil.len as u32,
                     pad: [0; 3],
                 },
-            )
-        });
+            )),
+            (GpuTopology::Stencil, None) => {
+                return Err(GpuError::Validation(
+                    "a stencil topology without its stencil".into(),
+                ));
+            }
+            _ => None,
+        };
         let kernel = Kernel::new(
             context,
             "gather and integrate",
@@ -88,12 +97,12 @@ impl GatherIntegrate {
             model.uniforms.vertex_count,
             |current| {
                 let mut resources = verlet_bindings(model, state, extra_forces, current);
-                match &kinds {
-                    Some(kinds) => resources.push((9, kinds.as_entire_binding())),
-                    None => {
-                        resources.push((5, rows.as_entire_binding()));
-                        resources.push((8, entries.as_entire_binding()));
-                    }
+                if let Some(kinds) = &kinds {
+                    resources.push((9, kinds.as_entire_binding()));
+                }
+                if let GpuTopology::Gather { rows, entries } = &model.topology {
+                    resources.push((5, rows.as_entire_binding()));
+                    resources.push((8, entries.as_entire_binding()));
                 }
                 resources
             },
@@ -118,6 +127,7 @@ mod tests {
         assert_next_positions, context, damped_on_gpu, damped_on_gpu_from, expected_verlet_step,
         read_vec3s, reference_spring_forces, run, stretched,
     };
+    use crate::layout::GatherEntry;
     use crate::methods::GpuMethod;
     use crate::model::vec4s;
 
@@ -128,16 +138,23 @@ mod tests {
     #[test]
     fn one_pass_sums_each_vertex_springs_and_takes_the_reference_verlet_step() {
         let Some(context) = context() else { return };
-        let irregular = damped_on_gpu(&context);
-        let grid = damped_on_gpu_from(&context, stretched(MeshSection::unit_grid(13, 11), 143));
+        let grid = stretched(MeshSection::unit_grid(13, 11), 143);
+        let mut setups = [damped_on_gpu(&context), damped_on_gpu_from(&context, grid)];
+        // (setup, may_tear, the kernel expected). The grid's model starts as a stencil;
+        // `use_gather_entries` before its second run gives it the CSR rows.
         let runs = [
-            (&irregular, true, GatherVariant::Entries),
-            (&irregular, false, GatherVariant::UniformStiffness),
-            (&grid, true, GatherVariant::Entries),
-            (&grid, false, GatherVariant::Stencil),
+            (0, true, GatherVariant::Entries),
+            (0, false, GatherVariant::UniformStiffness),
+            (1, false, GatherVariant::Stencil),
+            (1, true, GatherVariant::Entries),
         ];
         let mut results = Vec::new();
-        for ((scene, seen, model, gpu_state), may_tear, variant) in runs {
+        for (setup, may_tear, variant) in runs {
+            let (scene, seen, model, gpu_state) = &mut setups[setup];
+            let (scene, seen, gpu_state) = (&*scene, &*seen, &*gpu_state);
+            if may_tear {
+                model.use_gather_entries(&context).expect("CSR rows");
+            }
             let n = scene.model.vertex_count();
             let extra = zeroed(&context, "extra", vec4s(n), wgpu::BufferUsages::empty());
             let springs = reference_spring_forces(&scene.model, &seen.positions);
@@ -163,6 +180,21 @@ mod tests {
             results[2] == results[3],
             "the stencil gives the CSR entries' bits"
         );
+    }
+
+    #[test]
+    fn a_stencil_allocates_no_csr_rows_until_tears_need_them() {
+        let Some(context) = context() else { return };
+        let grid = stretched(MeshSection::unit_grid(13, 11), 143);
+        let (scene, _, mut model, _) = damped_on_gpu_from(&context, grid);
+        assert!(matches!(model.topology, GpuTopology::Stencil));
+        assert_eq!(model.topology_bytes, size_of::<GpuStencil>() as u64);
+        assert!(model.force_records().is_none());
+        model.use_gather_entries(&context).expect("CSR rows");
+        let entries = 2 * scene.model.spring_count() * size_of::<GatherEntry>();
+        let rows = (scene.model.vertex_count() + 1) * size_of::<[u32; 2]>();
+        assert_eq!(model.topology_bytes, (entries + rows) as u64);
+        assert!(model.force_records().is_some());
     }
 
     #[test]

@@ -72,7 +72,9 @@ impl Tear {
                 contents: bytemuck::cast_slice(&first_bending),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let records = model.force_records();
+        let records = model.force_records().ok_or_else(|| {
+            GpuError::Validation("tearing needs the springs' records, not a stencil".into())
+        })?;
         let kernel = Kernel::new(
             context,
             "tear",
