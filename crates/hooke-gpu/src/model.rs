@@ -5,7 +5,7 @@ use hooke_core::{Material, Model};
 
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::{self, storage, zeroed};
-use crate::layout::{GatherEntry, GpuSpring, GpuStencil, StepUniforms};
+use crate::layout::{GatherEntry, GpuSpring, StepUniforms};
 use crate::methods::{Accumulation, GpuMethod};
 use crate::stencil::Stencil;
 
@@ -33,10 +33,13 @@ pub enum GpuTopology {
         rows: wgpu::Buffer,
         entries: wgpu::Buffer,
     },
-    /// The gather of a structured mesh that cannot tear: [`GpuModel::stencil`]'s kinds, no
-    /// CSR rows ([`GpuModel::use_gather_entries`] builds them when a snapshot's tears need
-    /// them).
-    Stencil,
+    /// The gather of a structured mesh that cannot tear: the stencil and its kinds as the
+    /// kernel binds them (`GpuStencil`); the masks travel in [`GpuModel::scales`]. No CSR rows:
+    /// [`GpuModel::use_gather_entries`] builds them when a snapshot's tears need them.
+    Stencil {
+        stencil: Stencil,
+        kinds: wgpu::Buffer,
+    },
     /// One record per spring.
     Scatter { springs: wgpu::Buffer },
 }
@@ -53,10 +56,8 @@ pub struct GpuModel {
     pub uniforms: StepUniforms,
     pub uniform_buffer: wgpu::Buffer,
     /// Per vertex `(dt^2 / m, 1 - c dt / m, stencil mask, 0)`, the first two zero for pinned
-    /// vertices (the mask: [`Stencil::mask_as_float`], else 0).
+    /// vertices (the mask: [`Stencil::mask_as_float`] with a [`GpuTopology::Stencil`], else 0).
     pub scales: wgpu::Buffer,
-    /// The springs as a stencil, for the gather of a structured mesh that cannot tear.
-    pub stencil: Option<Stencil>,
     pub topology: GpuTopology,
     /// Triangles as `vec4<u32>` (for wind).
     pub triangles: wgpu::Buffer,
@@ -90,16 +91,19 @@ impl GpuModel {
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let none = wgpu::BufferUsages::empty();
+        // Springs that can tear need the CSR entries, whose stiffness tearing zeroes.
         let stencil = (method == GpuMethod::Gather && model.tearing.is_none())
             .then(|| Stencil::of(model))
             .flatten();
-        let (topology, topology_bytes) = match method {
-            GpuMethod::Gather if stencil.is_some() => (
-                GpuTopology::Stencil,
-                std::mem::size_of::<GpuStencil>() as u64,
-            ),
-            GpuMethod::Gather => gather_adjacency(context, model)?,
-            GpuMethod::Scatter(_) => {
+        let (topology, topology_bytes) = match (method, stencil) {
+            (GpuMethod::Gather, Some(stencil)) => {
+                let kinds = stencil.table();
+                let bytes = std::mem::size_of_val(&kinds) as u64;
+                let kinds = gpu::uniform(context, &kinds);
+                (GpuTopology::Stencil { stencil, kinds }, bytes)
+            }
+            (GpuMethod::Gather, None) => gather_adjacency(context, model)?,
+            (GpuMethod::Scatter(_), _) => {
                 // The force pass writes one force per spring (gather keeps them in registers).
                 gpu::check_binding_size(context, "spring forces", vec4s(model.spring_count()))?;
                 let springs = spring_records(model);
@@ -140,7 +144,6 @@ impl GpuModel {
             method,
             uniform_buffer,
             scales,
-            stencil,
             topology,
             topology_bytes,
         };
@@ -174,7 +177,10 @@ impl GpuModel {
             gravity,
             ..
         } = self.material;
-        let stencil = self.stencil.as_ref();
+        let stencil = match &self.topology {
+            GpuTopology::Stencil { stencil, .. } => Some(stencil),
+            _ => None,
+        };
         let scales: Vec<[f32; 4]> = self
             .model
             .masses
@@ -231,7 +237,7 @@ impl GpuModel {
     /// The gather's CSR rows in place of its stencil (a no-op for any other topology): what a
     /// gather needs once a snapshot's tears zero some springs' stiffness.
     pub fn use_gather_entries(&mut self, context: &GpuContext) -> Result<(), GpuError> {
-        if matches!(self.topology, GpuTopology::Stencil) {
+        if matches!(self.topology, GpuTopology::Stencil { .. }) {
             (self.topology, self.topology_bytes) = gather_adjacency(context, &self.model)?;
         }
         Ok(())
@@ -243,7 +249,7 @@ impl GpuModel {
         match &self.topology {
             GpuTopology::Gather { entries, .. } => Some(entries),
             GpuTopology::Scatter { springs } => Some(springs),
-            GpuTopology::Stencil => None,
+            GpuTopology::Stencil { .. } => None,
         }
     }
 
@@ -252,7 +258,7 @@ impl GpuModel {
     pub fn stiffness_words(&self) -> Vec<[u32; 2]> {
         let model = &self.model;
         match &self.topology {
-            GpuTopology::Gather { .. } | GpuTopology::Stencil => {
+            GpuTopology::Gather { .. } | GpuTopology::Stencil { .. } => {
                 const WORDS: usize = std::mem::size_of::<GatherEntry>() / 4;
                 let stiffness = std::mem::offset_of!(GatherEntry, stiffness) / 4;
                 let mut words = vec![[u32::MAX; 2]; model.spring_count()];
@@ -290,7 +296,7 @@ impl GpuModel {
                 springs,
             ),
             // No records: a stencil's model has no tears (see `use_gather_entries`).
-            GpuTopology::Stencil => return,
+            GpuTopology::Stencil { .. } => return,
         };
         context.queue.write_buffer(records, 0, &bytes);
     }
@@ -299,7 +305,7 @@ impl GpuModel {
     pub fn springs(&self) -> Option<&wgpu::Buffer> {
         match &self.topology {
             GpuTopology::Scatter { springs } => Some(springs),
-            GpuTopology::Gather { .. } | GpuTopology::Stencil => None,
+            GpuTopology::Gather { .. } | GpuTopology::Stencil { .. } => None,
         }
     }
 }

@@ -12,7 +12,7 @@
 
 use hooke_core::Model;
 
-use crate::layout::{GpuStencilEntry, STENCIL_KINDS};
+use crate::layout::{GpuStencil, GpuStencilEntry, STENCIL_KINDS};
 
 /// Kinds of spring a stencil can hold: the mantissa bits of a float32 (see
 /// [`Stencil::mask_as_float`]).
@@ -21,10 +21,8 @@ pub const MAX_KINDS: usize = 23;
 /// The stencil of a model (see the module's description).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stencil {
-    /// The kinds in summation order; unused places are zero.
-    pub kinds: [GpuStencilEntry; STENCIL_KINDS],
-    /// How many of `kinds` are used.
-    pub len: usize,
+    /// The kinds in summation order, at most [`MAX_KINDS`].
+    pub kinds: Vec<GpuStencilEntry>,
     /// Per vertex, bit `k` set if the vertex has a spring of kind `k`.
     pub masks: Vec<u32>,
 }
@@ -35,6 +33,17 @@ impl Stencil {
     /// [2, 4), a normal number that no GPU flushes or canonicalizes.
     pub fn mask_as_float(&self, v: usize) -> f32 {
         f32::from_bits(2f32.to_bits() | self.masks[v])
+    }
+
+    /// The kinds as the kernel's uniform table holds them.
+    pub fn table(&self) -> GpuStencil {
+        let mut kinds = [GpuStencilEntry::default(); STENCIL_KINDS];
+        kinds[..self.kinds.len()].copy_from_slice(&self.kinds);
+        GpuStencil {
+            kinds,
+            len: self.kinds.len() as u32,
+            pad: [0; 3],
+        }
     }
 }
 
@@ -55,7 +64,8 @@ impl Stencil {
         let mut kinds: Vec<Kind> = Vec::new();
         // before[a] has bit b set when some vertex sums kind a right before kind b.
         let mut before = [0u32; MAX_KINDS];
-        let mut sequences: Vec<u32> = Vec::with_capacity(model.vertex_count());
+        // Per vertex, its kinds as numbered when first seen (renumbered below).
+        let mut seen_masks: Vec<u32> = Vec::with_capacity(model.vertex_count());
         for v in 0..model.vertex_count() {
             let (mut mask, mut previous) = (0u32, None::<usize>);
             for e in adjacency.range(v) {
@@ -82,13 +92,12 @@ impl Stencil {
                 }
                 previous = Some(k);
             }
-            sequences.push(mask);
+            seen_masks.push(mask);
         }
         let rank = summation_order(&before[..kinds.len()])?;
         let mut stencil = Self {
-            kinds: [GpuStencilEntry::default(); STENCIL_KINDS],
-            len: kinds.len(),
-            masks: sequences
+            kinds: vec![GpuStencilEntry::default(); kinds.len()],
+            masks: seen_masks
                 .iter()
                 .map(|&mask| {
                     (0..kinds.len())
@@ -152,8 +161,7 @@ mod tests {
     fn a_grid_is_six_kinds_in_its_vertices_summation_order() {
         let model = model_of(&grid(7, 5, [1.2, 1.0], GridPlane::Xz, DVec3::ZERO));
         let stencil = Stencil::of(&model).expect("a grid is a stencil");
-        assert_eq!(stencil.len, 6);
-        let offsets: Vec<i32> = stencil.kinds[..6].iter().map(|k| k.offset).collect();
+        let offsets: Vec<i32> = stencil.kinds.iter().map(|k| k.offset).collect();
         assert_eq!(offsets, [-8, -7, -1, 1, 7, 8]);
         // Each vertex's set bits, lowest first, name its springs in the model's order.
         for v in 0..model.vertex_count() {
@@ -196,6 +204,6 @@ mod tests {
         model.stiffnesses[s] *= 2.0;
         let stencil = Stencil::of(&model).expect("still a stencil");
         // The spring seen from each of its ends.
-        assert_eq!(stencil.len, 8);
+        assert_eq!(stencil.kinds.len(), 8);
     }
 }

@@ -4,8 +4,7 @@
 
 use super::integrate::verlet_bindings;
 use crate::context::{GpuContext, GpuError};
-use crate::gpu::{Kernel, uniform};
-use crate::layout::GpuStencil;
+use crate::gpu::Kernel;
 use crate::model::{GpuModel, GpuTopology, uniform_stiffness};
 use crate::state::GpuState;
 
@@ -35,8 +34,6 @@ impl GatherVariant {
 pub struct GatherIntegrate {
     pub kernel: Kernel,
     pub variant: GatherVariant,
-    /// The stencil's kinds, which the kernel's bind groups hold ([`GatherVariant::Stencil`]).
-    _stencil: Option<wgpu::Buffer>,
 }
 
 impl GatherIntegrate {
@@ -52,14 +49,16 @@ impl GatherIntegrate {
         extra_forces: &wgpu::Buffer,
         may_tear: bool,
     ) -> Result<Self, GpuError> {
-        let variant = match &model.topology {
-            GpuTopology::Stencil if !may_tear => GatherVariant::Stencil,
+        let (variant, kinds) = match &model.topology {
+            GpuTopology::Stencil { kinds, .. } if !may_tear => {
+                (GatherVariant::Stencil, Some(kinds))
+            }
             GpuTopology::Gather { .. }
                 if !may_tear && uniform_stiffness(&model.model).is_some() =>
             {
-                GatherVariant::UniformStiffness
+                (GatherVariant::UniformStiffness, None)
             }
-            GpuTopology::Gather { .. } => GatherVariant::Entries,
+            GpuTopology::Gather { .. } => (GatherVariant::Entries, None),
             _ => {
                 return Err(GpuError::Validation(
                     "the gather step needs the gather adjacency (or, for springs that cannot \
@@ -67,23 +66,6 @@ impl GatherIntegrate {
                         .into(),
                 ));
             }
-        };
-        // The masks travel in the integration scales (see `GpuModel::scales`).
-        let kinds = match (&model.topology, &model.stencil) {
-            (GpuTopology::Stencil, Some(stencil)) => Some(uniform(
-                context,
-                &GpuStencil {
-                    kinds: stencil.kinds,
-                    len: stencil.len as u32,
-                    pad: [0; 3],
-                },
-            )),
-            (GpuTopology::Stencil, None) => {
-                return Err(GpuError::Validation(
-                    "a stencil topology without its stencil".into(),
-                ));
-            }
-            _ => None,
         };
         let kernel = Kernel::new(
             context,
@@ -97,7 +79,8 @@ impl GatherIntegrate {
             model.uniforms.vertex_count,
             |current| {
                 let mut resources = verlet_bindings(model, state, extra_forces, current);
-                if let Some(kinds) = &kinds {
+                // A stencil's masks travel in the integration scales.
+                if let Some(kinds) = kinds {
                     resources.push((9, kinds.as_entire_binding()));
                 }
                 if let GpuTopology::Gather { rows, entries } = &model.topology {
@@ -107,11 +90,7 @@ impl GatherIntegrate {
                 resources
             },
         )?;
-        Ok(Self {
-            kernel,
-            variant,
-            _stencil: kinds,
-        })
+        Ok(Self { kernel, variant })
     }
 }
 
@@ -119,15 +98,15 @@ impl GatherIntegrate {
 mod tests {
     use glam::DVec3;
 
-    use super::*;
-    use crate::gpu::zeroed;
     use hooke_core::scene::MeshSection;
 
+    use super::*;
+    use crate::gpu::zeroed;
     use crate::kernels::testing::{
         assert_next_positions, context, damped_on_gpu, damped_on_gpu_from, expected_verlet_step,
         read_vec3s, reference_spring_forces, run, stretched,
     };
-    use crate::layout::GatherEntry;
+    use crate::layout::{GatherEntry, GpuStencil};
     use crate::methods::GpuMethod;
     use crate::model::vec4s;
 
@@ -187,7 +166,7 @@ mod tests {
         let Some(context) = context() else { return };
         let grid = stretched(MeshSection::unit_grid(13, 11), 143);
         let (scene, _, mut model, _) = damped_on_gpu_from(&context, grid);
-        assert!(matches!(model.topology, GpuTopology::Stencil));
+        assert!(matches!(model.topology, GpuTopology::Stencil { .. }));
         assert_eq!(model.topology_bytes, size_of::<GpuStencil>() as u64);
         assert!(model.force_records().is_none());
         model.use_gather_entries(&context).expect("CSR rows");
