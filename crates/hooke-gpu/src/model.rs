@@ -33,9 +33,9 @@ pub enum GpuTopology {
         rows: wgpu::Buffer,
         entries: wgpu::Buffer,
     },
-    /// The gather of a structured mesh that cannot tear: the stencil and its kinds as the
-    /// kernel binds them (`GpuStencil`); the masks travel in [`GpuModel::scales`]. No CSR rows:
-    /// [`GpuModel::use_gather_entries`] builds them when a snapshot's tears need them.
+    /// The gather of a structured mesh whose records never change: the stencil and its kinds
+    /// as the kernel binds them (`GpuStencil`); the masks travel in [`GpuModel::scales`]. No
+    /// CSR rows: [`GpuModel::let_records_change`] builds them when a snapshot's tears need them.
     Stencil {
         stencil: Stencil,
         kinds: wgpu::Buffer,
@@ -59,6 +59,10 @@ pub struct GpuModel {
     /// vertices (the mask: [`Stencil::mask_as_float`] with a [`GpuTopology::Stencil`], else 0).
     pub scales: wgpu::Buffer,
     pub topology: GpuTopology,
+    /// Whether the force records' stiffness may be rewritten (zero for torn springs: the
+    /// model tears, or a restored snapshot carried tears). Kernels must then read each
+    /// record's stiffness; otherwise the gather may read less (a stencil, one stiffness).
+    pub records_change: bool,
     /// Triangles as `vec4<u32>` (for wind).
     pub triangles: wgpu::Buffer,
     /// `vertex_count + 1` offsets, then each vertex's triangles (for wind, in a fixed order).
@@ -91,8 +95,8 @@ impl GpuModel {
             wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let none = wgpu::BufferUsages::empty();
-        // Springs that can tear need the CSR entries, whose stiffness tearing zeroes.
-        let stencil = (method == GpuMethod::Gather && model.tearing.is_none())
+        let records_change = model.tearing.is_some();
+        let stencil = (method == GpuMethod::Gather && !records_change)
             .then(|| Stencil::of(model))
             .flatten();
         let (topology, topology_bytes) = match (method, stencil) {
@@ -146,6 +150,7 @@ impl GpuModel {
             scales,
             topology,
             topology_bytes,
+            records_change,
         };
         gpu_model.set_accumulation_scales();
         gpu_model.write_scales(context);
@@ -234,12 +239,14 @@ impl GpuModel {
         };
     }
 
-    /// The gather's CSR rows in place of its stencil (a no-op for any other topology): what a
-    /// gather needs once a snapshot's tears zero some springs' stiffness.
-    pub fn use_gather_entries(&mut self, context: &GpuContext) -> Result<(), GpuError> {
+    /// Lets the force records' stiffness be rewritten from now on (a restored snapshot's
+    /// tears): a stencil gives way to the gather's CSR rows, and kernels built after this read
+    /// each record's stiffness ([`GpuModel::records_change`]).
+    pub fn let_records_change(&mut self, context: &GpuContext) -> Result<(), GpuError> {
         if matches!(self.topology, GpuTopology::Stencil { .. }) {
             (self.topology, self.topology_bytes) = gather_adjacency(context, &self.model)?;
         }
+        self.records_change = true;
         Ok(())
     }
 
@@ -295,7 +302,7 @@ impl GpuModel {
                 bytemuck::cast_slice(&spring_records(&torn)).to_vec(),
                 springs,
             ),
-            // No records: a stencil's model has no tears (see `use_gather_entries`).
+            // No records: a stencil's never change (see `let_records_change`).
             GpuTopology::Stencil { .. } => return,
         };
         context.queue.write_buffer(records, 0, &bytes);

@@ -144,9 +144,7 @@ impl GpuSolver {
         let extra_forces = &external.extra_forces;
         let force = match method {
             GpuMethod::Gather => {
-                let may_tear = model.tearing.is_some();
-                let gather = GatherIntegrate::new(ctx, &gpu_model, &state, extra_forces, may_tear)?;
-                Forces::Gather(gather)
+                Forces::Gather(GatherIntegrate::new(ctx, &gpu_model, &state, extra_forces)?)
             }
             GpuMethod::Scatter(accumulation) => {
                 let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
@@ -647,19 +645,18 @@ impl Solver for GpuSolver {
                 max_stretch: f64::INFINITY,
             };
             let context = &self.context;
-            // A stencil has no records for the tears' zero stiffness.
-            self.model.use_gather_entries(context).map_err(device)?;
+            // The tears' zero stiffness goes into the records, which the gather must then read.
+            self.model.let_records_change(context).map_err(device)?;
             let flags = self
                 .broken
                 .get_or_insert_with(|| tear::broken_flags(context, spring_count));
             let tear = Tear::new(context, &self.model, &self.state, &never, flags);
             self.tear = Some(tear.map_err(device)?);
-            // The entries now carry the tears' zero stiffness, which the gather must read.
             if let Forces::Gather(gather) = &mut self.force
                 && gather.variant != GatherVariant::Entries
             {
                 let extra = &self.external.extra_forces;
-                *gather = GatherIntegrate::new(context, &self.model, &self.state, extra, true)
+                *gather = GatherIntegrate::new(context, &self.model, &self.state, extra)
                     .map_err(device)?;
             }
         }

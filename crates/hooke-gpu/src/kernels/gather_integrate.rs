@@ -37,8 +37,8 @@ pub struct GatherIntegrate {
 }
 
 impl GatherIntegrate {
-    /// With `may_tear` false, the kernel reads less than each spring's CSR entry where the
-    /// model allows: a structured mesh (a grid) as a `Stencil`, a mask per vertex; else,
+    /// Unless the model's records may change ([`GpuModel::records_change`]), the kernel reads
+    /// less than each spring's CSR entry where the model allows: a structured mesh (a grid) as a `Stencil`, a mask per vertex; else,
     /// when every spring has one stiffness, 8 of each entry's 12 bytes. Springs that can tear
     /// need the entries' stiffness, which tearing zeroes. The same floats are summed in the same
     /// order every way, so all give the same bits.
@@ -47,14 +47,11 @@ impl GatherIntegrate {
         model: &GpuModel,
         state: &GpuState,
         extra_forces: &wgpu::Buffer,
-        may_tear: bool,
     ) -> Result<Self, GpuError> {
         let (variant, kinds) = match &model.topology {
-            GpuTopology::Stencil { kinds, .. } if !may_tear => {
-                (GatherVariant::Stencil, Some(kinds))
-            }
+            GpuTopology::Stencil { kinds, .. } => (GatherVariant::Stencil, Some(kinds)),
             GpuTopology::Gather { .. }
-                if !may_tear && uniform_stiffness(&model.model).is_some() =>
+                if !model.records_change && uniform_stiffness(&model.model).is_some() =>
             {
                 (GatherVariant::UniformStiffness, None)
             }
@@ -119,20 +116,20 @@ mod tests {
         let Some(context) = context() else { return };
         let grid = stretched(MeshSection::unit_grid(13, 11), 143);
         let mut setups = [damped_on_gpu(&context), damped_on_gpu_from(&context, grid)];
-        // (setup, may_tear, the kernel expected). The grid's model starts as a stencil;
-        // `use_gather_entries` before its second run gives it the CSR rows.
+        // (setup, records may change, the kernel expected). The grid's model starts as a
+        // stencil; `let_records_change` before its second run gives it the CSR rows.
         let runs = [
-            (0, true, GatherVariant::Entries),
             (0, false, GatherVariant::UniformStiffness),
+            (0, true, GatherVariant::Entries),
             (1, false, GatherVariant::Stencil),
             (1, true, GatherVariant::Entries),
         ];
         let mut results = Vec::new();
-        for (setup, may_tear, variant) in runs {
+        for (setup, records_change, variant) in runs {
             let (scene, seen, model, gpu_state) = &mut setups[setup];
             let (scene, seen, gpu_state) = (&*scene, &*seen, &*gpu_state);
-            if may_tear {
-                model.use_gather_entries(&context).expect("CSR rows");
+            if records_change {
+                model.let_records_change(&context).expect("CSR rows");
             }
             let n = scene.model.vertex_count();
             let extra = zeroed(&context, "extra", vec4s(n), wgpu::BufferUsages::empty());
@@ -140,8 +137,7 @@ mod tests {
             let expected = expected_verlet_step(scene, seen, &springs, &vec![DVec3::ZERO; n]);
             // Each run updates the deltas in place: start each from the same state.
             gpu_state.write(&context, seen);
-            let gather =
-                GatherIntegrate::new(&context, model, gpu_state, &extra, may_tear).expect("kernel");
+            let gather = GatherIntegrate::new(&context, model, gpu_state, &extra).expect("kernel");
             assert_eq!(gather.variant, variant);
             run(&context, |e| {
                 gather.kernel.encode(e, gpu_state.current, None)
@@ -169,7 +165,7 @@ mod tests {
         assert!(matches!(model.topology, GpuTopology::Stencil { .. }));
         assert_eq!(model.topology_bytes, size_of::<GpuStencil>() as u64);
         assert!(model.force_records().is_none());
-        model.use_gather_entries(&context).expect("CSR rows");
+        model.let_records_change(&context).expect("CSR rows");
         let entries = 2 * scene.model.spring_count() * size_of::<GatherEntry>();
         let rows = (scene.model.vertex_count() + 1) * size_of::<[u32; 2]>();
         assert_eq!(model.topology_bytes, (entries + rows) as u64);
@@ -184,8 +180,7 @@ mod tests {
         let model = GpuModel::new(&context, &scene.model, &scene.material, GpuMethod::Gather)
             .expect("model");
         let extra = zeroed(&context, "extra", vec4s(1), wgpu::BufferUsages::empty());
-        let gather =
-            GatherIntegrate::new(&context, &model, &gpu_state, &extra, false).expect("kernel");
+        let gather = GatherIntegrate::new(&context, &model, &gpu_state, &extra).expect("kernel");
         assert_eq!(gather.variant, GatherVariant::Entries);
     }
 }
