@@ -542,14 +542,21 @@ fn gpu_bench_prints_every_accumulation() {
             .unwrap_or_else(|| panic!("a {method} row"))
     };
     let passes = |method: &str| row(method)["dispatches_per_step"].as_u64();
-    // Gather: forces and integration in one pass, then the step counter; scatter: force,
-    // accumulation pass(es), integration, step counter.
+    // Gather: forces and integration in one pass, then the step counter; scatter's atomic
+    // accumulations: forces and their sums in one pass, integration, step counter; the others:
+    // force, accumulation pass(es), integration, step counter.
     assert_eq!(passes("gather"), Some(2));
+    assert_eq!(passes("scatter/atomic-fixed"), Some(3));
     assert_eq!(passes("scatter/incidence"), Some(4));
-    assert_eq!(passes("scatter/atomic-fixed"), Some(5));
-    // So gather has no integration time of its own; scatter has.
+    assert_eq!(passes("scatter/blend-r16f"), Some(5));
+    // So gather has no integration time of its own and scatter has; only an accumulation
+    // with passes of its own has an accumulation time.
     assert!(row("gather")["integration_ms"].is_null());
+    assert!(row("gather")["force_accumulation_ms"].is_null());
+    assert!(row("scatter/atomic-fixed")["integration_ms"].is_f64());
+    assert!(row("scatter/atomic-fixed")["force_accumulation_ms"].is_null());
     assert!(row("scatter/incidence")["integration_ms"].as_f64() > Some(0.0));
+    assert!(row("scatter/incidence")["force_accumulation_ms"].is_f64());
 }
 
 #[test]

@@ -51,6 +51,13 @@ impl Accumulation {
         matches!(self, Self::AtomicFixed | Self::Incidence)
     }
 
+    /// Whether it sums a buffer of per-spring forces that a pass of its own computed (the
+    /// paper's separate force and accumulation phases). The atomic accumulations add each
+    /// force in the pass that computes it, and need no such buffer.
+    pub fn reads_spring_forces(self) -> bool {
+        !matches!(self, Self::AtomicF32 | Self::AtomicFixed)
+    }
+
     pub(crate) fn required_feature(self) -> Option<(wgpu::Features, &'static str)> {
         match self {
             Self::AtomicF32 => Some((
@@ -106,6 +113,12 @@ impl GpuMethod {
             }
             _ => None,
         }
+    }
+
+    /// Whether the per-vertex sums take passes of their own, timed as the accumulation phase
+    /// (gather sums as it computes, as do the atomic accumulations).
+    pub fn accumulates_separately(self) -> bool {
+        matches!(self, Self::Scatter(a) if a.reads_spring_forces())
     }
 
     pub fn is_deterministic(self) -> bool {

@@ -20,9 +20,8 @@ use hooke_core::{
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::{read_back, zeroed};
 use crate::kernels::ScatterBuffers;
-use crate::kernels::accumulate_atomic_f32::AccumulateAtomicF32;
+use crate::kernels::accumulate_atomic::AccumulateAtomic;
 use crate::kernels::accumulate_blend::AccumulateBlend;
-use crate::kernels::accumulate_fixed::AccumulateFixed;
 use crate::kernels::accumulate_incidence::AccumulateIncidence;
 use crate::kernels::balls::Balls;
 use crate::kernels::collide::Collide;
@@ -48,7 +47,9 @@ use crate::step::{
 enum Forces {
     Gather(GatherIntegrate),
     Scatter {
-        springs: ForceSprings,
+        /// The per-spring force pass, for the accumulations that read one force per spring
+        /// (incidence, blend); the atomic ones compute the forces in their own pass.
+        springs: Option<ForceSprings>,
         accumulation: Box<Accumulator>,
         /// Per-vertex spring forces, the accumulation's sums.
         forces: wgpu::Buffer,
@@ -57,8 +58,8 @@ enum Forces {
 }
 
 enum Accumulator {
-    AtomicF32(AccumulateAtomicF32),
-    Fixed(AccumulateFixed),
+    /// atomic-f32 or atomic-fixed: forces and sums in one pass.
+    Atomic(AccumulateAtomic),
     Incidence(AccumulateIncidence),
     Blend(AccumulateBlend),
 }
@@ -148,38 +149,46 @@ impl GpuSolver {
             }
             GpuMethod::Scatter(accumulation) => {
                 let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
-                let springs = ForceSprings::new(ctx, &gpu_model, &state)?;
                 let buffers = ScatterBuffers {
                     uniforms: &gpu_model.uniform_buffer,
                     springs: gpu_model.springs().ok_or_else(|| {
                         GpuError::Validation("scatter without spring records".into())
                     })?,
-                    spring_forces: &springs.spring_forces,
                     forces: &forces,
                     status: &state.status,
                     vertex_count: n as u32,
                     spring_count: model.spring_count() as u32,
                 };
-                let accumulation = match accumulation {
-                    Accumulation::AtomicF32 => {
-                        Accumulator::AtomicF32(AccumulateAtomicF32::new(ctx, &buffers)?)
-                    }
-                    Accumulation::AtomicFixed => {
-                        Accumulator::Fixed(AccumulateFixed::new(ctx, &buffers)?)
+                let fixed_point = accumulation == Accumulation::AtomicFixed;
+                let (springs, accumulator) = match accumulation {
+                    Accumulation::AtomicF32 | Accumulation::AtomicFixed => {
+                        let sum = AccumulateAtomic::new(ctx, &buffers, &state, fixed_point)?;
+                        (None, Accumulator::Atomic(sum))
                     }
                     Accumulation::Incidence => {
-                        Accumulator::Incidence(AccumulateIncidence::new(ctx, model, &buffers)?)
+                        let springs = ForceSprings::new(ctx, &gpu_model, &state)?;
+                        let sum =
+                            AccumulateIncidence::new(ctx, model, &buffers, &springs.spring_forces)?;
+                        (Some(springs), Accumulator::Incidence(sum))
                     }
                     Accumulation::BlendR32f
                     | Accumulation::BlendR16f
                     | Accumulation::BlendRgba8 => {
-                        Accumulator::Blend(AccumulateBlend::new(ctx, &buffers, accumulation)?)
+                        let springs = ForceSprings::new(ctx, &gpu_model, &state)?;
+                        let sum = AccumulateBlend::new(
+                            ctx,
+                            &buffers,
+                            &springs.spring_forces,
+                            accumulation,
+                        )?;
+                        (Some(springs), Accumulator::Blend(sum))
                     }
                 };
-                let integrate = Integrate::new(ctx, &gpu_model, &state, &forces, extra_forces)?;
+                let integrate =
+                    Integrate::new(ctx, &gpu_model, &state, &forces, extra_forces, fixed_point)?;
                 Forces::Scatter {
                     springs,
-                    accumulation: Box::new(accumulation),
+                    accumulation: Box::new(accumulator),
                     forces,
                     integrate,
                 }
@@ -282,13 +291,13 @@ impl GpuSolver {
                 ..
             } => {
                 let (topology, scratch) = match accumulation.as_ref() {
-                    Accumulator::AtomicF32(_) => (0, 0),
-                    Accumulator::Fixed(a) => (0, a.bytes()),
+                    Accumulator::Atomic(_) => (0, 0),
                     Accumulator::Incidence(a) => (a.bytes(), 0),
                     Accumulator::Blend(a) => (0, a.bytes()),
                 };
                 // The per-vertex force sums too.
-                (topology, vec4s(n) + springs.bytes() + scratch)
+                let spring_forces = springs.as_ref().map_or(0, ForceSprings::bytes);
+                (topology, vec4s(n) + spring_forces + scratch)
             }
         };
         GpuMemory {
@@ -355,17 +364,17 @@ impl GpuSolver {
                 forces,
                 integrate,
             } => {
-                sink.pass(Phase::Force, &mut |e, t| {
-                    springs.kernel.encode(e, current, t);
-                })?;
+                if let Some(springs) = springs {
+                    sink.pass(Phase::Force, &mut |e, t| {
+                        springs.kernel.encode(e, current, t);
+                    })?;
+                }
                 let acc = Phase::Accumulation;
                 match accumulation.as_ref() {
-                    Accumulator::AtomicF32(a) => {
-                        sink.pass(acc, &mut |e, t| a.encode(e, forces, t))?;
-                    }
-                    Accumulator::Fixed(a) => {
-                        sink.pass(acc, &mut |e, t| a.encode_accumulate(e, t))?;
-                        sink.pass(acc, &mut |e, t| a.encode_resolve(e, t))?;
+                    // Forces computed as they are summed: one pass, timed as the force phase
+                    // (as gather's).
+                    Accumulator::Atomic(a) => {
+                        sink.pass(Phase::Force, &mut |e, t| a.encode(e, forces, current, t))?;
                     }
                     Accumulator::Incidence(a) => {
                         sink.pass(acc, &mut |e, t| a.kernel.encode(e, current, t))?;
@@ -494,7 +503,10 @@ impl GpuSolver {
     /// none. The same passes as every other step.
     fn run_timed_step(&mut self) -> Result<(PhaseTimes, TimingSource), RunError> {
         let mut times = PhaseTimes {
-            force_accumulation: matches!(self.model.method, GpuMethod::Scatter(_))
+            force_accumulation: self
+                .model
+                .method
+                .accumulates_separately()
                 .then_some(Duration::ZERO),
             ..Default::default()
         };

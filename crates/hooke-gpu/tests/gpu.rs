@@ -273,6 +273,7 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
     for method in [
         GpuMethod::Gather,
         GpuMethod::Scatter(Accumulation::AtomicFixed),
+        GpuMethod::Scatter(Accumulation::Incidence),
     ] {
         let build = || gpu_solver(&context, &scene, method).expect("solver");
         let mut plain = build();
@@ -290,14 +291,12 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
                 with_clock.integration > std::time::Duration::ZERO,
                 method != GpuMethod::Gather
             );
-            assert_eq!(
-                with_clock.force_accumulation.is_some(),
-                method != GpuMethod::Gather
-            );
-            assert_eq!(
-                with_timestamps.force_accumulation.is_some(),
-                method != GpuMethod::Gather
-            );
+            // Gather and the atomic accumulations sum in the force pass; incidence has a pass
+            // of its own.
+            let separate = method == GpuMethod::Scatter(Accumulation::Incidence);
+            assert_eq!(method.accumulates_separately(), separate);
+            assert_eq!(with_clock.force_accumulation.is_some(), separate);
+            assert_eq!(with_timestamps.force_accumulation.is_some(), separate);
         }
         let expected = state_of(&plain);
         assert!(state_of(&timed) == expected, "{}", method.name());

@@ -724,7 +724,8 @@ impl Simulation {
         Ok(dict)
     }
 
-    /// One step with each phase timed, in ms (`force_accumulation` only for scatter), and how
+    /// One step with each phase timed, in ms (`force_accumulation` only where the sums take
+    /// passes of their own: CPU scatter, GPU incidence and blend), and how
     /// (`"timestamps"` on a GPU that has them, else `"wall-clock"`).
     fn step_timed<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let (times, source) = py.detach(|| self.with(|s| s.step_timed().or_raise()))?;

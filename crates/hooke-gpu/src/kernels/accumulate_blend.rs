@@ -24,6 +24,7 @@ impl AccumulateBlend {
     pub fn new(
         context: &GpuContext,
         buffers: &ScatterBuffers<'_>,
+        spring_forces: &wgpu::Buffer,
         accumulation: Accumulation,
     ) -> Result<Self, GpuError> {
         let n = buffers.vertex_count;
@@ -124,7 +125,7 @@ impl AccumulateBlend {
             &[
                 (0, buffers.uniforms.as_entire_binding()),
                 (1, buffers.springs.as_entire_binding()),
-                (2, buffers.spring_forces.as_entire_binding()),
+                (2, spring_forces.as_entire_binding()),
             ],
         );
         let resolve = Kernel::new(

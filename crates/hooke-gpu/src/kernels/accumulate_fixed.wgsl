@@ -1,13 +1,16 @@
-// Scatter accumulation in fixed point with integer atomics (works everywhere, WebGPU too).
-// A force f becomes round(f * fixed_scale) in an i32. The host picks fixed_scale so that no
-// single contribution exceeds 2^31 / (max valence + 1): a vertex's sum then cannot wrap. A
-// larger contribution is clamped and raises the overflow flag, which the solver reports.
-// Integer addition is associative, so the result is bit-identical from run to run.
+// Scatter in fixed point with integer atomics (works everywhere, WebGPU too), force and
+// accumulation in one pass: each spring computes its force (paper eq. 1), and a force f becomes
+// round(f * fixed_scale) in an i32 added to its `a` end and subtracted from its `b` end. The
+// host picks fixed_scale so that no single contribution exceeds 2^31 / (max valence + 1): a
+// vertex's sum then cannot wrap. A larger contribution is clamped and raises the overflow
+// flag, which the solver reports. Integer addition is associative, so the result is
+// bit-identical from run to run. The sums stay integers in the per-vertex force buffer;
+// `integrate.wgsl`'s `fixed_point` entry point turns them back into newtons.
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read> springs: array<Spring>;
-@group(0) @binding(2) var<storage, read> spring_forces: array<vec4<f32>>;
-// 4 integers per vertex, zeroed before the pass.
+@group(0) @binding(2) var<storage, read> positions: array<vec4<f32>>;
+// The per-vertex force buffer as 4 integers per vertex, zeroed before the pass.
 @group(0) @binding(3) var<storage, read_write> accumulated: array<atomic<i32>>;
 @group(0) @binding(4) var<storage, read_write> status: Status;
 
@@ -28,7 +31,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         return;
     }
     let spring = springs[s];
-    let q = to_fixed(spring_forces[s].xyz);
+    let q = to_fixed(spring_force(positions[spring.a].xyz, positions[spring.b].xyz, spring.stiffness * u.stiffness_scale, spring.rest_length));
     atomicAdd(&accumulated[4u * spring.a + 0u], q.x);
     atomicAdd(&accumulated[4u * spring.a + 1u], q.y);
     atomicAdd(&accumulated[4u * spring.a + 2u], q.z);

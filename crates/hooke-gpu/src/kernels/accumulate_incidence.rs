@@ -23,6 +23,7 @@ impl AccumulateIncidence {
         context: &GpuContext,
         model: &Model,
         buffers: &ScatterBuffers<'_>,
+        spring_forces: &wgpu::Buffer,
     ) -> Result<Self, GpuError> {
         let adjacency = &model.adjacency;
         let offsets: Vec<u32> = adjacency.offsets.clone();
@@ -47,7 +48,7 @@ impl AccumulateIncidence {
             |_| {
                 vec![
                     (0, buffers.uniforms.as_entire_binding()),
-                    (1, buffers.spring_forces.as_entire_binding()),
+                    (1, spring_forces.as_entire_binding()),
                     (2, offsets_buffer.as_entire_binding()),
                     (3, entries_buffer.as_entire_binding()),
                     (4, buffers.forces.as_entire_binding()),

@@ -1,7 +1,8 @@
 //! `integrate.wgsl`: the scatter methods' integration pass, damped Verlet (paper eq. 3-4) in
 //! delta form (`verlet.wgsl`, which gather runs inside its force pass). Reads the current
 //! positions and the per-vertex forces (plus the extra forces of a control), writes the next
-//! positions and updates the deltas in place; records the first non-finite vertex.
+//! positions and updates the deltas in place; records the first non-finite vertex. The
+//! atomic-fixed accumulation's forces are integer sums, which `integrate_fixed.wgsl` reads.
 
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::Kernel;
@@ -20,11 +21,17 @@ impl Integrate {
         state: &GpuState,
         forces: &wgpu::Buffer,
         extra_forces: &wgpu::Buffer,
+        fixed_point: bool,
     ) -> Result<Self, GpuError> {
+        let (label, source) = if fixed_point {
+            ("integrate fixed-point sums", super::INTEGRATE_FIXED)
+        } else {
+            ("integrate", super::INTEGRATE)
+        };
         let kernel = Kernel::new(
             context,
-            "integrate",
-            super::INTEGRATE,
+            label,
+            source,
             "main",
             model.uniforms.vertex_count,
             |current| {
@@ -92,8 +99,8 @@ mod tests {
             buffer
         };
         let (forces, extra_forces) = (upload("forces", &spring), upload("extra", &extra));
-        let integrate =
-            Integrate::new(&context, &model, &gpu_state, &forces, &extra_forces).expect("kernel");
+        let integrate = Integrate::new(&context, &model, &gpu_state, &forces, &extra_forces, false)
+            .expect("kernel");
         let mut with_extra = model.uniforms;
         with_extra.has_extra = 1;
         context

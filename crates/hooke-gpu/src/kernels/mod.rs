@@ -4,9 +4,8 @@
 //! the kernel itself). Each source is `workgroup.wgsl` and `common.wgsl` followed by the
 //! kernel's own file.
 
-pub mod accumulate_atomic_f32;
+pub mod accumulate_atomic;
 pub mod accumulate_blend;
-pub mod accumulate_fixed;
 pub mod accumulate_incidence;
 pub mod balls;
 pub mod collide;
@@ -28,8 +27,6 @@ mod testing;
 pub struct ScatterBuffers<'a> {
     pub uniforms: &'a wgpu::Buffer,
     pub springs: &'a wgpu::Buffer,
-    /// One force per spring, from `force_springs`.
-    pub spring_forces: &'a wgpu::Buffer,
     /// The per-vertex sums the accumulation writes.
     pub forces: &'a wgpu::Buffer,
     pub status: &'a wgpu::Buffer,
@@ -89,11 +86,11 @@ pub const GATHER_INTEGRATE: &str = kernel_source!(with verlet "gather_integrate.
 pub const FORCE_SPRINGS: &str = kernel_source!("force_springs.wgsl");
 pub const ACCUMULATE_ATOMIC_F32: &str = kernel_source!("accumulate_atomic_f32.wgsl");
 pub const ACCUMULATE_FIXED: &str = kernel_source!("accumulate_fixed.wgsl");
-pub const RESOLVE_FIXED: &str = kernel_source!("resolve_fixed.wgsl");
 pub const ACCUMULATE_INCIDENCE: &str = kernel_source!("accumulate_incidence.wgsl");
 pub const ACCUMULATE_BLEND: &str = kernel_source!("accumulate_blend.wgsl");
 pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
 pub const INTEGRATE: &str = kernel_source!(with verlet "integrate.wgsl");
+pub const INTEGRATE_FIXED: &str = kernel_source!(with verlet "integrate_fixed.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TICK: &str = kernel_source!("tick.wgsl");
 pub const TEAR: &str = kernel_source!("tear.wgsl");
@@ -110,11 +107,11 @@ pub const ALL: &[(&str, &str)] = &[
     ("force_springs", FORCE_SPRINGS),
     ("accumulate_atomic_f32", ACCUMULATE_ATOMIC_F32),
     ("accumulate_fixed", ACCUMULATE_FIXED),
-    ("resolve_fixed", RESOLVE_FIXED),
     ("accumulate_incidence", ACCUMULATE_INCIDENCE),
     ("accumulate_blend", ACCUMULATE_BLEND),
     ("resolve_blend", RESOLVE_BLEND),
     ("integrate", INTEGRATE),
+    ("integrate_fixed", INTEGRATE_FIXED),
     ("external", EXTERNAL),
     ("tick", TICK),
     ("tear", TEAR),

@@ -11,7 +11,7 @@ use hooke_core::{Model, State};
 use crate::context::GpuContext;
 use crate::gpu::{read_back, zeroed};
 use crate::kernels::ScatterBuffers;
-use crate::kernels::accumulate_fixed::AccumulateFixed;
+use crate::kernels::accumulate_atomic::AccumulateAtomic;
 use crate::kernels::accumulate_incidence::AccumulateIncidence;
 use crate::kernels::force_springs::ForceSprings;
 use crate::methods::{Accumulation, GpuMethod};
@@ -196,9 +196,16 @@ pub fn as_gpu_sees(state: &State) -> State {
     }
 }
 
-/// Spring forces, then `accumulation`, from a stretched state; the per-vertex sums.
+/// Spring forces, then `accumulation`, from a stretched state; the per-vertex sums in
+/// newtons, and the reference's. `None` without a device, or without the feature the
+/// accumulation needs.
 pub fn accumulated(accumulation: Accumulation) -> Option<(Vec<DVec3>, Vec<DVec3>)> {
     let context = context()?;
+    if let Some((feature, _)) = accumulation.required_feature()
+        && !context.has(feature)
+    {
+        return None;
+    }
     let (scene, state) = stretched_scene();
     let n = scene.model.vertex_count();
     let method = GpuMethod::Scatter(accumulation);
@@ -206,36 +213,48 @@ pub fn accumulated(accumulation: Accumulation) -> Option<(Vec<DVec3>, Vec<DVec3>
     let gpu_state = GpuState::new(&context, n);
     gpu_state.write(&context, &state);
     model.write_uniforms(&context);
-    let forces = zeroed(&context, "forces", vec4s(n), wgpu::BufferUsages::COPY_SRC);
-    let springs = ForceSprings::new(&context, &model, &gpu_state).expect("springs");
+    let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+    let forces = zeroed(&context, "forces", vec4s(n), copy);
     let buffers = ScatterBuffers {
         uniforms: &model.uniform_buffer,
         springs: model.springs().expect("spring records"),
-        spring_forces: &springs.spring_forces,
         forces: &forces,
         status: &gpu_state.status,
         vertex_count: n as u32,
         spring_count: scene.model.spring_count() as u32,
     };
     let current = gpu_state.current;
-    match accumulation {
+    let actual = match accumulation {
         Accumulation::Incidence => {
-            let sum = AccumulateIncidence::new(&context, &scene.model, &buffers).expect("kernel");
+            let springs = ForceSprings::new(&context, &model, &gpu_state).expect("springs");
+            let sum =
+                AccumulateIncidence::new(&context, &scene.model, &buffers, &springs.spring_forces)
+                    .expect("kernel");
             run(&context, |e| {
                 springs.kernel.encode(e, current, None);
                 sum.kernel.encode(e, current, None);
             });
+            read_vec3s(&context, &forces, n)
+        }
+        Accumulation::AtomicF32 => {
+            let sum = AccumulateAtomic::new(&context, &buffers, &gpu_state, false).expect("kernel");
+            run(&context, |e| sum.encode(e, &forces, current, None));
+            read_vec3s(&context, &forces, n)
         }
         Accumulation::AtomicFixed => {
-            let sum = AccumulateFixed::new(&context, &buffers).expect("kernel");
-            run(&context, |e| {
-                springs.kernel.encode(e, current, None);
-                sum.encode_accumulate(e, None);
-                sum.encode_resolve(e, None);
-            });
+            let sum = AccumulateAtomic::new(&context, &buffers, &gpu_state, true).expect("kernel");
+            run(&context, |e| sum.encode(e, &forces, current, None));
+            // Integer sums, in units of 1 / fixed_scale newtons (as integrate_fixed.wgsl
+            // reads them).
+            let bytes = read_back(&context, &[(&forces, vec4s(n))]).expect("read back");
+            let sums: Vec<[i32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
+            let scale = model.uniforms.fixed_scale;
+            sums.iter()
+                .map(|q| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64) / f64::from(scale))
+                .collect()
         }
         other => panic!("{} is not tested here", other.name()),
-    }
+    };
     let expected = reference_spring_forces(&scene.model, &as_gpu_sees(&state).positions);
-    Some((read_vec3s(&context, &forces, n), expected))
+    Some((actual, expected))
 }
