@@ -5,7 +5,7 @@
 // vertex's sum then cannot wrap. A larger contribution is clamped and raises the overflow
 // flag, which the solver reports. Integer addition is associative, so the result is
 // bit-identical from run to run. The sums stay integers in the per-vertex force buffer;
-// `integrate.wgsl`'s `fixed_point` entry point turns them back into newtons.
+// `integrate_fixed.wgsl` turns them back into newtons.
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read> springs: array<Spring>;
