@@ -108,8 +108,6 @@ impl GpuModel {
             }
             (GpuMethod::Gather, None) => gather_adjacency(context, model)?,
             (GpuMethod::Scatter(_), _) => {
-                // The force pass writes one force per spring (gather keeps them in registers).
-                gpu::check_binding_size(context, "spring forces", vec4s(model.spring_count()))?;
                 let springs = spring_records(model);
                 gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
                 let bytes = bytes_of(&springs);

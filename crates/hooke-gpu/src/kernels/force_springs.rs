@@ -3,7 +3,7 @@
 //! the vertices.
 
 use crate::context::{GpuContext, GpuError};
-use crate::gpu::{Kernel, zeroed};
+use crate::gpu::{self, Kernel, zeroed};
 use crate::model::{GpuModel, vec4s};
 use crate::state::GpuState;
 
@@ -21,6 +21,8 @@ impl ForceSprings {
             .springs()
             .ok_or_else(|| GpuError::Validation("spring forces need the spring records".into()))?;
         let spring_count = model.uniforms.spring_count;
+        // Checked here, where it is allocated: gather and the atomic accumulations have none.
+        gpu::check_binding_size(context, "spring forces", vec4s(spring_count as usize))?;
         let spring_forces = zeroed(
             context,
             "spring forces",
