@@ -21,7 +21,7 @@ pub use crate::lanes::{Lanes, Soa};
 use crate::layout::{LANES, Slices};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
-pub use crate::simd::Block;
+pub use crate::simd::{Block, Point};
 use crate::simd::{Portable, Simd};
 
 /// Spring stiffness per entry, or one value for all. A uniform stiffness is one row read with
@@ -236,6 +236,43 @@ pub struct SpringTable {
     pub stiffness: Stiffness,
 }
 
+/// Scatter's per-spring forces, as its force pass writes them and its accumulation reads them.
+/// The last row stays zero for padding entries.
+#[derive(Clone, Debug)]
+pub enum SpringForces {
+    /// Three axes of blocks: a structured mesh's incidence rows run consecutively and load
+    /// with vector loads.
+    Axes(Soa),
+    /// One point per spring slot, in rows of 8: an irregular mesh's incidence rows are
+    /// gathered lane by lane, and each lane then takes one load instead of three.
+    Points(Vec<[Point; LANES]>),
+}
+
+impl SpringForces {
+    /// Points when fewer than half of the incidence rows load contiguously.
+    pub fn for_incidence(incidence: &IncidenceTable, spring_rows: usize) -> Self {
+        if incidence.entry.contiguous_share() < 0.5 {
+            Self::Points(vec![[[0.0; 4]; LANES]; spring_rows + 1])
+        } else {
+            Self::Axes(Soa::zeros(spring_rows + 1))
+        }
+    }
+
+    pub fn bytes(&self) -> usize {
+        match self {
+            Self::Axes(axes) => axes.bytes(),
+            Self::Points(rows) => std::mem::size_of_val(rows.as_slice()),
+        }
+    }
+}
+
+/// Where a chunk of scatter's force pass writes its rows.
+#[derive(Debug)]
+pub enum ForceRows<'a> {
+    Axes([&'a mut [Block]; 3]),
+    Points(&'a mut [[Point; LANES]]),
+}
+
 /// Sign bit of an incidence entry: the vertex is the spring's `b` end, so the force is negated.
 pub const B_END: u32 = 0x8000_0000;
 
@@ -339,6 +376,32 @@ fn load_row<S: Simd>(
     }
 }
 
+/// The positions of the 8 vertices of `row`: a contiguous row loads from the axes; another
+/// from `points` when given (one 16-byte load per lane), else lane by lane from each axis.
+#[inline(always)]
+fn load_positions_row<S: Simd>(
+    simd: S,
+    axes: [&[f32]; 3],
+    points: Option<&[Point]>,
+    rows: &IndexRows,
+    row: usize,
+) -> [S::V; 3] {
+    match points {
+        Some(points) if !rows.contiguous[row] => {
+            let index = &rows.gathered[rows.head[row] as usize];
+            // SAFETY: `CpuSolver::new` builds every vertex index below `padded_len`, the length
+            // of `points`.
+            unsafe { simd.gather_points(points, index, u32::MAX) }
+        }
+        // Written out per axis: closures would not inline into the AVX2 functions.
+        _ => [
+            load_row(simd, axes[0], rows, row, u32::MAX, false),
+            load_row(simd, axes[1], rows, row, u32::MAX, false),
+            load_row(simd, axes[2], rows, row, u32::MAX, false),
+        ],
+    }
+}
+
 /// Force of 8 springs on their near ends: `D (1 - l0/|d|) d` per axis, `d = x_far - x_near`.
 #[inline(always)]
 fn spring_force_rows<S: Simd>(
@@ -397,6 +460,8 @@ fn gather_slice<S: Simd>(simd: S, table: &GatherTable, positions: &Soa, slice: u
     force
 }
 
+/// Sums the incident spring forces of `slice`'s vertices from three axes. Flipping the sign
+/// bit negates exactly: the force on the spring's far end.
 #[inline(always)]
 fn accumulate_slice<S: Simd>(
     simd: S,
@@ -408,7 +473,6 @@ fn accumulate_slice<S: Simd>(
     let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
-        // Flipping the sign bit negates exactly: the force on the spring's far end.
         let fx = load_row(simd, xs, &table.entry, row, !B_END, true);
         let fy = load_row(simd, ys, &table.entry, row, !B_END, true);
         let fz = load_row(simd, zs, &table.entry, row, !B_END, true);
@@ -416,6 +480,29 @@ fn accumulate_slice<S: Simd>(
             simd.add(force[0], fx),
             simd.add(force[1], fy),
             simd.add(force[2], fz),
+        ];
+    }
+    force
+}
+
+/// [`accumulate_slice`] from one point per spring slot.
+#[inline(always)]
+fn accumulate_points_slice<S: Simd>(
+    simd: S,
+    table: &IncidenceTable,
+    points: &[Point],
+    slice: usize,
+) -> [S::V; 3] {
+    let mut force = [simd.splat(0.0); 3];
+    for row in table.slices.rows(slice) {
+        let index = table.entry.row(row);
+        // SAFETY: `CpuSolver::new` builds every spring slot (masked) below the buffer's
+        // length: the springs' rows and one row of zeros for padding.
+        let [fx, fy, fz] = unsafe { simd.gather_points(points, &index, !B_END) };
+        force = [
+            simd.add(force[0], simd.flip_sign(fx, &index)),
+            simd.add(force[1], simd.flip_sign(fy, &index)),
+            simd.add(force[2], simd.flip_sign(fz, &index)),
         ];
     }
     force
@@ -567,15 +654,22 @@ dispatch! {
 fn accumulate_and_integrate_with<S: Simd>(
     simd: S,
     table: &IncidenceTable,
-    spring_forces: &Soa,
+    spring_forces: &SpringForces,
     integrator: &Integrator,
     current: &Soa,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    integrate_chunk(simd, integrator, current, extra, chunk, |slice| {
-        accumulate_slice(simd, table, spring_forces, slice)
-    })
+    match spring_forces {
+        SpringForces::Axes(axes) => integrate_chunk(simd, integrator, current, extra, chunk, |s| {
+            accumulate_slice(simd, table, axes, s)
+        }),
+        SpringForces::Points(rows) => {
+            integrate_chunk(simd, integrator, current, extra, chunk, |s| {
+                accumulate_points_slice(simd, table, rows.as_flattened(), s)
+            })
+        }
+    }
 }
 
 dispatch! {
@@ -584,7 +678,7 @@ dispatch! {
     /// then integrates.
     pub fn accumulate_and_integrate(
         table: &IncidenceTable,
-        spring_forces: &Soa,
+        spring_forces: &SpringForces,
         integrator: &Integrator,
         current: &Soa,
         extra: Option<&Soa>,
@@ -592,48 +686,83 @@ dispatch! {
     ) -> bool => accumulate_and_integrate_with
 }
 
+/// The forces of spring row `row` on its `a` ends.
+#[inline(always)]
+fn spring_row_force<S: Simd>(
+    simd: S,
+    springs: &SpringTable,
+    axes: [&[f32]; 3],
+    points: Option<&[Point]>,
+    row: usize,
+) -> [S::V; 3] {
+    let a = load_positions_row(simd, axes, points, &springs.a, row);
+    let b = load_positions_row(simd, axes, points, &springs.b, row);
+    let stiffness = simd.load(springs.stiffness.row(row));
+    spring_force_rows(simd, a, b, stiffness, springs.rest_length.load(simd, row))
+}
+
 #[inline(always)]
 fn spring_forces_with<S: Simd>(
     simd: S,
     springs: &SpringTable,
     current: &Soa,
+    points: Option<&[Point]>,
     first_row: usize,
-    out: [&mut [Block]; 3],
+    out: ForceRows<'_>,
+) {
+    // Two copies of the loop, one that never looks at points: the structured meshes' rows.
+    match points {
+        None => spring_rows(simd, springs, current, None, first_row, out),
+        Some(points) => spring_rows(simd, springs, current, Some(points), first_row, out),
+    }
+}
+
+#[inline(always)]
+fn spring_rows<S: Simd>(
+    simd: S,
+    springs: &SpringTable,
+    current: &Soa,
+    points: Option<&[Point]>,
+    first_row: usize,
+    out: ForceRows<'_>,
 ) {
     let [xs, ys, zs] = current.axes();
-    let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
-    let [ox, oy, oz] = out;
-    for (k, ((fx, fy), fz)) in ox
-        .iter_mut()
-        .zip(oy.iter_mut())
-        .zip(oz.iter_mut())
-        .enumerate()
-    {
-        let row = first_row + k;
-        let a = [
-            load_row(simd, xs, &springs.a, row, u32::MAX, false),
-            load_row(simd, ys, &springs.a, row, u32::MAX, false),
-            load_row(simd, zs, &springs.a, row, u32::MAX, false),
-        ];
-        let b = [
-            load_row(simd, xs, &springs.b, row, u32::MAX, false),
-            load_row(simd, ys, &springs.b, row, u32::MAX, false),
-            load_row(simd, zs, &springs.b, row, u32::MAX, false),
-        ];
-        let stiffness = simd.load(springs.stiffness.row(row));
-        let [f0, f1, f2] =
-            spring_force_rows(simd, a, b, stiffness, springs.rest_length.load(simd, row));
-        simd.store(f0, fx);
-        simd.store(f1, fy);
-        simd.store(f2, fz);
+    let axes = [xs.as_flattened(), ys.as_flattened(), zs.as_flattened()];
+    // Calls, not a closure: closures would not inline into the AVX2 functions.
+    match out {
+        ForceRows::Axes([ox, oy, oz]) => {
+            for (k, ((fx, fy), fz)) in ox
+                .iter_mut()
+                .zip(oy.iter_mut())
+                .zip(oz.iter_mut())
+                .enumerate()
+            {
+                let [f0, f1, f2] = spring_row_force(simd, springs, axes, points, first_row + k);
+                simd.store(f0, fx);
+                simd.store(f1, fy);
+                simd.store(f2, fz);
+            }
+        }
+        ForceRows::Points(rows) => {
+            for (k, out) in rows.iter_mut().enumerate() {
+                let force = spring_row_force(simd, springs, axes, points, first_row + k);
+                simd.store_points(force, out);
+            }
+        }
     }
 }
 
 dispatch! {
     /// Scatter (ECA) force pass: each spring's force on its `a` end, computed once, for rows
-    /// `first_row..first_row + out.len()`.
-    pub fn spring_forces(springs: &SpringTable, current: &Soa, first_row: usize, out: [&mut [Block]; 3]) -> ()
-        => spring_forces_with
+    /// `first_row..first_row + out.len()`. Rows gathered lane by lane read `points` (the
+    /// positions, one point per vertex) when given.
+    pub fn spring_forces(
+        springs: &SpringTable,
+        current: &Soa,
+        points: Option<&[Point]>,
+        first_row: usize,
+        out: ForceRows<'_>,
+    ) -> () => spring_forces_with
 }
 
 #[inline(always)]
@@ -668,17 +797,22 @@ dispatch! {
 fn accumulate_forces_with<S: Simd>(
     simd: S,
     table: &IncidenceTable,
-    spring_forces: &Soa,
+    spring_forces: &SpringForces,
     chunk: ForceChunk<'_>,
 ) {
-    store_forces(simd, chunk, |slice| {
-        accumulate_slice(simd, table, spring_forces, slice)
-    });
+    match spring_forces {
+        SpringForces::Axes(axes) => {
+            store_forces(simd, chunk, |s| accumulate_slice(simd, table, axes, s))
+        }
+        SpringForces::Points(rows) => store_forces(simd, chunk, |s| {
+            accumulate_points_slice(simd, table, rows.as_flattened(), s)
+        }),
+    }
 }
 
 dispatch! {
     /// Phase-separated scatter accumulation (for per-phase timing): net force per vertex.
-    pub fn accumulate_forces(table: &IncidenceTable, spring_forces: &Soa, chunk: ForceChunk<'_>) -> ()
+    pub fn accumulate_forces(table: &IncidenceTable, spring_forces: &SpringForces, chunk: ForceChunk<'_>) -> ()
         => accumulate_forces_with
 }
 

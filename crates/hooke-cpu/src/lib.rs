@@ -34,8 +34,8 @@ use rayon::prelude::*;
 
 use external::ExternalForces;
 use kernels::{
-    Block, ForceChunk, GatherTable, IncidenceTable, InstructionSet, Integrator, Soa, SpringTable,
-    VertexChunk,
+    Block, ForceChunk, ForceRows, GatherTable, IncidenceTable, InstructionSet, Integrator, Point,
+    Soa, SpringForces, SpringTable, VertexChunk,
 };
 use lanes::Lanes;
 use layout::{LANES, Numbering, VertexOrder};
@@ -118,7 +118,7 @@ enum Topology {
         springs: SpringTable,
         incidence: IncidenceTable,
         /// One row more than `springs`: the last row stays zero for padding entries.
-        spring_forces: Soa,
+        spring_forces: SpringForces,
     },
 }
 
@@ -144,6 +144,9 @@ pub struct CpuSolver {
     phase_forces: Soa,
     /// `x(t)`.
     current: Soa,
+    /// `x(t)` as one point per vertex, for force passes that gather positions lane by lane
+    /// (scatter on an irregular mesh; empty otherwise).
+    points: Vec<Point>,
     /// Receives `x(t + dt)`; swapped with `current` after each step.
     next: Soa,
     /// `x(t) - x(t - dt)`, updated in place (see [`kernels`] for why not `x(t - dt)`).
@@ -200,6 +203,7 @@ impl CpuSolver {
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),
             current: Soa::zeros(slices),
+            points: Vec::new(),
             next: Soa::zeros(slices),
             delta: Soa::zeros(slices),
             inverse_masses: selfcollide::inverse_masses(model),
@@ -268,8 +272,29 @@ impl CpuSolver {
         CpuMemory {
             positions,
             topology,
-            per_step: forces + integration + external,
+            per_step: forces + self.points_bytes() + integration + external,
         }
+    }
+
+    /// Bytes of `points` when the force pass reads them (see [`CpuSolver::pack_points`]).
+    fn points_bytes(&self) -> usize {
+        if self.reads_points() {
+            self.numbering.padded_len * std::mem::size_of::<Point>()
+        } else {
+            0
+        }
+    }
+
+    /// Whether the force pass reads the positions as points: scatter's on a mesh whose rows
+    /// are gathered lane by lane.
+    fn reads_points(&self) -> bool {
+        matches!(
+            &self.topology,
+            Topology::Scatter {
+                spring_forces: SpringForces::Points(_),
+                ..
+            }
+        )
     }
 
     /// Bytes one fused step must read or write at least once (the memory-bandwidth floor).
@@ -296,6 +321,8 @@ impl CpuSolver {
                         + 2 * spring_forces.bytes()
                 }
             }
+            // The points: written from the positions, read by the force pass.
+            + 2 * self.points_bytes()
     }
 
     fn compute_external(&mut self) -> bool {
@@ -415,6 +442,7 @@ impl CpuSolver {
     /// Forces and integration in one pass per vertex chunk; true if every result is finite.
     fn forces_and_integration_fused(&mut self, has_extra: bool) -> bool {
         let isa = self.options.instruction_set;
+        let points = self.pack_points().then_some(self.points.as_slice());
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         match &mut self.topology {
@@ -428,7 +456,7 @@ impl CpuSolver {
                 incidence,
                 spring_forces,
             } => {
-                compute_spring_forces(isa, springs, current, spring_forces);
+                compute_spring_forces(isa, springs, current, points, spring_forces);
                 let spring_forces = &*spring_forces;
                 for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
                     kernels::accumulate_and_integrate(
@@ -451,10 +479,11 @@ impl CpuSolver {
         if self.phase_forces.blocks() != self.numbering.slice_count() {
             self.phase_forces = Soa::zeros(self.numbering.slice_count());
         }
+        let start = Instant::now();
+        let points = self.pack_points().then_some(self.points.as_slice());
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let phase_forces = &mut self.phase_forces;
-        let start = Instant::now();
         match &mut self.topology {
             Topology::Gather(table) => {
                 for_each_force_chunk(phase_forces, |chunk| {
@@ -467,7 +496,7 @@ impl CpuSolver {
                 incidence,
                 spring_forces,
             } => {
-                compute_spring_forces(isa, springs, current, spring_forces);
+                compute_spring_forces(isa, springs, current, points, spring_forces);
                 times.force_calculation = start.elapsed();
                 let start = Instant::now();
                 let spring_forces = &*spring_forces;
@@ -484,6 +513,28 @@ impl CpuSolver {
         });
         times.integration = start.elapsed();
         all_finite
+    }
+
+    /// Copies `x(t)` into `points` when the force pass reads them; true if it did.
+    fn pack_points(&mut self) -> bool {
+        if !self.reads_points() {
+            return false;
+        }
+        let [xs, ys, zs] = self.current.axes();
+        let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
+        self.points.resize(xs.len(), [0.0; 4]);
+        let per_task = SLICES_PER_TASK * LANES;
+        self.points
+            .par_chunks_mut(per_task)
+            .enumerate()
+            .for_each(|(task, out)| {
+                let first = task * per_task;
+                for (k, point) in out.iter_mut().enumerate() {
+                    let v = first + k;
+                    *point = [xs[v], ys[v], zs[v], 0.0];
+                }
+            });
+        true
     }
 
     /// Reports a dynamic ball that `collide` found non-finite, at the step just finished.
@@ -613,24 +664,29 @@ fn compute_spring_forces(
     isa: InstructionSet,
     springs: &SpringTable,
     current: &Soa,
-    spring_forces: &mut Soa,
+    points: Option<&[Point]>,
+    spring_forces: &mut SpringForces,
 ) {
     let rows = springs.a.len();
-    let [x, y, z] = spring_forces.axes_mut();
-    x[..rows]
-        .par_chunks_mut(SPRING_ROWS_PER_TASK)
-        .zip(y[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
-        .zip(z[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
-        .enumerate()
-        .for_each(|(task, ((x, y), z))| {
-            kernels::spring_forces(
-                isa,
-                springs,
-                current,
-                task * SPRING_ROWS_PER_TASK,
-                [x, y, z],
-            );
-        });
+    let pass = |task: usize, out: ForceRows<'_>| {
+        let first = task * SPRING_ROWS_PER_TASK;
+        kernels::spring_forces(isa, springs, current, points, first, out);
+    };
+    match spring_forces {
+        SpringForces::Axes(axes) => {
+            let [x, y, z] = axes.axes_mut();
+            x[..rows]
+                .par_chunks_mut(SPRING_ROWS_PER_TASK)
+                .zip(y[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
+                .zip(z[..rows].par_chunks_mut(SPRING_ROWS_PER_TASK))
+                .enumerate()
+                .for_each(|(task, ((x, y), z))| pass(task, ForceRows::Axes([x, y, z])));
+        }
+        SpringForces::Points(out) => out[..rows]
+            .par_chunks_mut(SPRING_ROWS_PER_TASK)
+            .enumerate()
+            .for_each(|(task, out)| pass(task, ForceRows::Points(out))),
+    }
 }
 
 impl Solver for CpuSolver {

@@ -9,6 +9,9 @@ use crate::layout::LANES;
 /// One lane-block (8 vertices or springs) of one scalar quantity.
 pub type Block = [f32; LANES];
 
+/// A vector quantity as 16 bytes (x, y, z and a zero), so one load fetches all of it.
+pub type Point = [f32; 4];
+
 /// 8-lane float operations. A value of the implementing type is proof the CPU can run them.
 pub trait Simd: Copy {
     type V: Copy;
@@ -20,6 +23,18 @@ pub trait Simd: Copy {
     /// # Safety
     /// Every masked index must be below `values.len()`.
     unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> Self::V;
+    /// `points[index[lane] & mask]` per lane, as its x, y and z (the fourth word is ignored).
+    ///
+    /// # Safety
+    /// Every masked index must be below `points.len()`.
+    unsafe fn gather_points(
+        self,
+        points: &[Point],
+        index: &[u32; LANES],
+        mask: u32,
+    ) -> [Self::V; 3];
+    /// Stores lane `k` of `x`, `y` and `z` as `out[k]`, its fourth word zero.
+    fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
     fn sub(self, a: Self::V, b: Self::V) -> Self::V;
     fn mul(self, a: Self::V, b: Self::V) -> Self::V;
@@ -59,6 +74,18 @@ impl Simd for Portable {
     unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> Block {
         // SAFETY: the caller guarantees every masked index is in bounds.
         std::array::from_fn(|lane| unsafe { *values.get_unchecked((index[lane] & mask) as usize) })
+    }
+    #[inline(always)]
+    unsafe fn gather_points(self, points: &[Point], index: &[u32; LANES], mask: u32) -> [Block; 3] {
+        // SAFETY: the caller guarantees every masked index is in bounds.
+        let at = |lane: usize| unsafe { points.get_unchecked((index[lane] & mask) as usize) };
+        std::array::from_fn(|axis| std::array::from_fn(|lane| at(lane)[axis]))
+    }
+    #[inline(always)]
+    fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
+        for (lane, point) in out.iter_mut().enumerate() {
+            *point = [x[lane], y[lane], z[lane], 0.0];
+        }
     }
     #[inline(always)]
     fn add(self, a: Block, b: Block) -> Block {
@@ -108,7 +135,7 @@ mod avx2 {
     use std::arch::x86_64::*;
     use std::sync::OnceLock;
 
-    use super::{Block, LANES, Simd};
+    use super::{Block, LANES, Point, Simd};
 
     /// AVX2 intrinsics. Only [`Avx2::detect`] makes one, after checking the CPU.
     #[derive(Clone, Copy, Debug)]
@@ -154,7 +181,7 @@ mod avx2 {
     // SAFETY (every `unsafe` block below): an `Avx2` value exists only if the CPU has AVX2, and
     // the kernels using these methods are compiled with AVX2 enabled (see `kernels::dispatch`),
     // so the intrinsics are supported and inline. Loads and stores go through references to
-    // 8-float blocks, which are exactly 32 readable/writable bytes.
+    // 8-float blocks, which are exactly 32 readable/writable bytes, or to 8 points, 128 bytes.
     impl Simd for Avx2 {
         type V = __m256;
         #[inline(always)]
@@ -183,6 +210,68 @@ mod avx2 {
                     _mm256_set1_epi32(mask as i32),
                 );
                 _mm256_i32gather_ps::<4>(values.as_ptr(), index)
+            }
+        }
+        #[inline(always)]
+        unsafe fn gather_points(
+            self,
+            points: &[Point],
+            index: &[u32; LANES],
+            mask: u32,
+        ) -> [__m256; 3] {
+            // SAFETY: the caller guarantees every masked index is in bounds, and each point is
+            // 16 readable bytes.
+            unsafe {
+                // One 16-byte load per lane, then a 4x4 transpose in each 128-bit half: 8
+                // loads and 11 shuffles where three gathers by lane take 24 loads and 21
+                // inserts. (A macro, not a closure: closures would not inline into the AVX2
+                // functions.)
+                macro_rules! pair {
+                    ($low:literal, $high:literal) => {
+                        _mm256_insertf128_ps::<1>(
+                            _mm256_castps128_ps256(_mm_loadu_ps(
+                                points.get_unchecked((index[$low] & mask) as usize).as_ptr(),
+                            )),
+                            _mm_loadu_ps(
+                                points
+                                    .get_unchecked((index[$high] & mask) as usize)
+                                    .as_ptr(),
+                            ),
+                        )
+                    };
+                }
+                // Lanes (0, 4), (1, 5), (2, 6), (3, 7): each half transposes on its own.
+                let (a0, a1, a2, a3) = (pair!(0, 4), pair!(1, 5), pair!(2, 6), pair!(3, 7));
+                let xy01 = _mm256_unpacklo_ps(a0, a1);
+                let zw01 = _mm256_unpackhi_ps(a0, a1);
+                let xy23 = _mm256_unpacklo_ps(a2, a3);
+                let zw23 = _mm256_unpackhi_ps(a2, a3);
+                [
+                    _mm256_shuffle_ps::<0x44>(xy01, xy23),
+                    _mm256_shuffle_ps::<0xEE>(xy01, xy23),
+                    _mm256_shuffle_ps::<0x44>(zw01, zw23),
+                ]
+            }
+        }
+        #[inline(always)]
+        fn store_points(self, [x, y, z]: [__m256; 3], out: &mut [Point; LANES]) {
+            unsafe {
+                // The transpose of `gather_points`: points (k, k + 4) in each register, then
+                // two points to a 32-byte store.
+                let zero = _mm256_setzero_ps();
+                let xy01 = _mm256_unpacklo_ps(x, y);
+                let xy23 = _mm256_unpackhi_ps(x, y);
+                let zw01 = _mm256_unpacklo_ps(z, zero);
+                let zw23 = _mm256_unpackhi_ps(z, zero);
+                let p04 = _mm256_shuffle_ps::<0x44>(xy01, zw01);
+                let p15 = _mm256_shuffle_ps::<0xEE>(xy01, zw01);
+                let p26 = _mm256_shuffle_ps::<0x44>(xy23, zw23);
+                let p37 = _mm256_shuffle_ps::<0xEE>(xy23, zw23);
+                let base = out.as_mut_ptr().cast::<f32>();
+                _mm256_storeu_ps(base, _mm256_permute2f128_ps::<0x20>(p04, p15));
+                _mm256_storeu_ps(base.add(8), _mm256_permute2f128_ps::<0x20>(p26, p37));
+                _mm256_storeu_ps(base.add(16), _mm256_permute2f128_ps::<0x31>(p04, p15));
+                _mm256_storeu_ps(base.add(24), _mm256_permute2f128_ps::<0x31>(p26, p37));
             }
         }
         #[inline(always)]
@@ -266,6 +355,29 @@ mod tests {
             Portable.select_positive(pa, pb, pa),
             avx2.select_positive(va, vb, va),
         );
+        let points: Vec<Point> = (0..40)
+            .map(|i| [i as f32, -(i as f32), 0.25 * i as f32, 9.0])
+            .collect();
+        let index = [3, 39, 0, 7 | 0x8000_0000, 12, 12, 1, 30];
+        // SAFETY: every masked index is below 40.
+        let (portable, vector) = unsafe {
+            (
+                Portable.gather_points(&points, &index, !0x8000_0000),
+                avx2.gather_points(&points, &index, !0x8000_0000),
+            )
+        };
+        for (p, v) in portable.into_iter().zip(vector) {
+            check(p, v);
+        }
+        let (mut from_portable, mut from_vector) = ([[0.0; 4]; LANES], [[1.0; 4]; LANES]);
+        Portable.store_points(portable, &mut from_portable);
+        avx2.store_points(vector, &mut from_vector);
+        assert_eq!(from_portable, from_vector);
+        // Stored points hold what was gathered, in order, with a zero fourth word.
+        for (lane, point) in from_portable.iter().enumerate() {
+            let source = points[(index[lane] & !0x8000_0000) as usize];
+            assert_eq!(point, &[source[0], source[1], source[2], 0.0]);
+        }
         let values: Vec<f32> = (0..40).map(|i| i as f32 * 0.5).collect();
         let index = [3, 39, 0, 7 | 0x8000_0000, 12, 12, 1, 30];
         // SAFETY: every masked index is below 40.

@@ -4,7 +4,7 @@
 use hooke_core::Model;
 
 use crate::kernels::{
-    B_END, GatherTable, IncidenceTable, IndexRows, Soa, SpringTable, Stiffness, ValueRows,
+    B_END, GatherTable, IncidenceTable, IndexRows, SpringForces, SpringTable, Stiffness, ValueRows,
 };
 use crate::layout::{LANES, Numbering, Slices};
 use crate::{Method, Topology};
@@ -34,7 +34,7 @@ pub(crate) fn build_topology(
         Method::Gather => Topology::Gather(gather_table(model, numbering)),
         Method::Scatter => {
             let (springs, incidence) = scatter_tables(model, numbering);
-            let spring_forces = Soa::zeros(springs.a.len() + 1);
+            let spring_forces = SpringForces::for_incidence(&incidence, springs.a.len());
             Topology::Scatter {
                 springs,
                 incidence,
@@ -222,12 +222,49 @@ mod tests {
     use super::*;
     use crate::layout::VertexOrder;
 
-    fn table_of(mesh: MeshSection, vertices: u32) -> GatherTable {
+    fn topology_of(mesh: MeshSection, vertices: u32, method: Method) -> Topology {
         let scene = SceneFile::benchmark(mesh, vertices)
             .build(Path::new("bench"), true)
             .expect("benchmark scene builds");
         let numbering = Numbering::new(&scene.model, VertexOrder::Auto);
-        gather_table(&scene.model, &numbering)
+        build_topology(&scene.model, &numbering, method, 1.0)
+    }
+
+    fn table_of(mesh: MeshSection, vertices: u32) -> GatherTable {
+        match topology_of(mesh, vertices, Method::Gather) {
+            Topology::Gather(table) => table,
+            Topology::Scatter { .. } => unreachable!("gather builds a gather table"),
+        }
+    }
+
+    /// Scatter keeps a grid's spring forces in three axes (its incidence rows load with
+    /// vector loads) and an irregular mesh's as one point per spring (its rows are gathered
+    /// lane by lane). The solver tests on both kinds of mesh hold either to the same bits.
+    #[test]
+    fn scatter_stores_spring_forces_as_points_where_incidence_rows_are_gathered() {
+        for (mesh, vertices, points) in [
+            (MeshSection::unit_grid(64, 64), 64 * 64, false),
+            (MeshSection::unit_irregular(4096, 1), 4096, true),
+        ] {
+            let Topology::Scatter {
+                springs,
+                incidence,
+                spring_forces,
+            } = topology_of(mesh, vertices, Method::Scatter)
+            else {
+                unreachable!("scatter builds scatter tables");
+            };
+            let share = incidence.entry.contiguous_share();
+            assert_eq!(share < 0.5, points, "contiguous incidence rows: {share}");
+            // One row more than the springs, for padding entries.
+            let (rows, bytes_per_slot) = match &spring_forces {
+                SpringForces::Axes(axes) => (axes.blocks(), 12),
+                SpringForces::Points(rows) => (rows.len(), 16),
+            };
+            assert_eq!(matches!(spring_forces, SpringForces::Points(_)), points);
+            assert_eq!(rows, springs.a.len() + 1);
+            assert_eq!(spring_forces.bytes(), rows * LANES * bytes_per_slot);
+        }
     }
 
     #[test]
