@@ -130,6 +130,12 @@ impl IndexRows {
     pub fn contiguous_share(&self) -> f64 {
         self.contiguous.iter().filter(|c| **c).count() as f64 / self.len().max(1) as f64
     }
+
+    /// Whether most rows load lane by lane (an irregular mesh's): the values they gather are
+    /// then worth keeping as points, one load a lane.
+    pub fn mostly_gathered(&self) -> bool {
+        self.contiguous_share() < 0.5
+    }
 }
 
 /// Per-entry values in rows of 8. A row whose 8 values are the same, as most rows of a regular
@@ -249,9 +255,9 @@ pub enum SpringForces {
 }
 
 impl SpringForces {
-    /// Points when fewer than half of the incidence rows load contiguously.
+    /// Points when most incidence rows load lane by lane.
     pub fn for_incidence(incidence: &IncidenceTable, spring_rows: usize) -> Self {
-        if incidence.entry.contiguous_share() < 0.5 {
+        if incidence.entry.mostly_gathered() {
             Self::Points(vec![[[0.0; 4]; LANES]; spring_rows + 1])
         } else {
             Self::Axes(Soa::zeros(spring_rows + 1))
@@ -428,9 +434,15 @@ fn spring_force_rows<S: Simd>(
 }
 
 #[inline(always)]
-fn gather_slice<S: Simd>(simd: S, table: &GatherTable, positions: &Soa, slice: usize) -> [S::V; 3] {
+fn gather_slice<S: Simd>(
+    simd: S,
+    table: &GatherTable,
+    positions: &Soa,
+    points: Option<&[Point]>,
+    slice: usize,
+) -> [S::V; 3] {
     let [xs, ys, zs] = positions.axes();
-    let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
+    let axes = [xs.as_flattened(), ys.as_flattened(), zs.as_flattened()];
     let own = [
         simd.load(&positions.axis(0)[slice]),
         simd.load(&positions.axis(1)[slice]),
@@ -438,11 +450,7 @@ fn gather_slice<S: Simd>(simd: S, table: &GatherTable, positions: &Soa, slice: u
     ];
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
-        let neighbor = [
-            load_row(simd, xs, &table.neighbor, row, u32::MAX, false),
-            load_row(simd, ys, &table.neighbor, row, u32::MAX, false),
-            load_row(simd, zs, &table.neighbor, row, u32::MAX, false),
-        ];
+        let neighbor = load_positions_row(simd, axes, points, &table.neighbor, row);
         let stiffness = simd.load(table.stiffness.row(row));
         let f = spring_force_rows(
             simd,
@@ -526,8 +534,9 @@ struct SliceOut<'a> {
     delta: [&'a mut Block; 3],
 }
 
-/// Integrates one slice: writes `x(t+dt)` to `out.next` and updates `out.delta` in place.
-/// Returns a probe that is NaN in lanes whose new position is not finite.
+/// Integrates one slice: writes `x(t+dt)` to `out.next` (and to `points` if given) and
+/// updates `out.delta` in place. Returns a probe that is NaN in lanes whose new position is
+/// not finite.
 #[inline(always)]
 fn integrate_slice<S: Simd>(
     simd: S,
@@ -536,11 +545,13 @@ fn integrate_slice<S: Simd>(
     slice: usize,
     force: [S::V; 3],
     out: SliceOut<'_>,
+    points: Option<&mut [Point; LANES]>,
 ) -> S::V {
     let force_scale = simd.load(&integrator.scales.axis(0)[slice]);
     let velocity_scale = simd.load(&integrator.scales.axis(1)[slice]);
     let zero = simd.splat(0.0);
     let mut probe = zero;
+    let mut news = [zero; 3];
     for (axis, (next, delta)) in out.next.into_iter().zip(out.delta).enumerate() {
         let x = simd.load(&current.axis(axis)[slice]);
         let moved = simd.add(
@@ -555,16 +566,21 @@ fn integrate_slice<S: Simd>(
         let new = simd.select_positive(force_scale, simd.add(x, new_delta), x);
         simd.store(new_delta, delta);
         simd.store(new, next);
+        news[axis] = new;
         probe = simd.add(probe, simd.mul(new, zero));
+    }
+    if let Some(points) = points {
+        simd.store_points(news, points);
     }
     probe
 }
 
 /// Iterates a chunk's outputs slice by slice.
-fn slice_outputs<'a>(chunk: VertexChunk<'a>) -> impl Iterator<Item = (usize, SliceOut<'a>)> {
-    let [nx, ny, nz] = chunk.next;
-    let [dx, dy, dz] = chunk.delta;
-    let first = chunk.first_slice;
+fn slice_outputs<'a>(
+    first: usize,
+    [nx, ny, nz]: [&'a mut [Block]; 3],
+    [dx, dy, dz]: [&'a mut [Block]; 3],
+) -> impl Iterator<Item = (usize, SliceOut<'a>)> {
     nx.iter_mut()
         .zip(ny.iter_mut())
         .zip(nz.iter_mut())
@@ -587,12 +603,14 @@ fn is_finite_probe<S: Simd>(simd: S, probe: S::V) -> bool {
     lanes.iter().all(|p| *p == 0.0)
 }
 
-/// A vertex-pass chunk: its first slice, where its next positions go and its deltas.
+/// A vertex-pass chunk: its first slice, where its next positions go (and, when the next
+/// step's force pass reads them, the same as points) and its deltas.
 #[derive(Debug)]
 pub struct VertexChunk<'a> {
     pub first_slice: usize,
     pub next: [&'a mut [Block]; 3],
     pub delta: [&'a mut [Block]; 3],
+    pub points: Option<&'a mut [[Point; LANES]]>,
 }
 
 /// A chunk of per-slice force output (phase-separated steps).
@@ -602,7 +620,70 @@ pub struct ForceChunk<'a> {
     pub out: [&'a mut [Block]; 3],
 }
 
-/// The vertex pass every step ends with: each slice's net force (from `force_of`, plus the
+/// Where a vertex pass takes each slice's net spring force from. Named types with an inlined
+/// method rather than closures: a closure called from two loops would not inline into the AVX2
+/// functions, and its intrinsics would become calls.
+trait SliceForces {
+    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3];
+}
+
+/// Gather: each slice sums its springs; with `POINTS`, gathered rows read `points`.
+struct Gathered<'a, const POINTS: bool> {
+    table: &'a GatherTable,
+    current: &'a Soa,
+    points: &'a [Point],
+}
+
+impl<const POINTS: bool> SliceForces for Gathered<'_, POINTS> {
+    #[inline(always)]
+    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+        let points = POINTS.then_some(self.points);
+        gather_slice(simd, self.table, self.current, points, slice)
+    }
+}
+
+/// Scatter: each slice sums its springs' forces from the force pass, kept in three axes.
+struct Accumulated<'a> {
+    table: &'a IncidenceTable,
+    spring_forces: &'a Soa,
+}
+
+impl SliceForces for Accumulated<'_> {
+    #[inline(always)]
+    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+        accumulate_slice(simd, self.table, self.spring_forces, slice)
+    }
+}
+
+/// [`Accumulated`] from one point per spring slot.
+struct AccumulatedPoints<'a> {
+    table: &'a IncidenceTable,
+    spring_forces: &'a [Point],
+}
+
+impl SliceForces for AccumulatedPoints<'_> {
+    #[inline(always)]
+    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+        accumulate_points_slice(simd, self.table, self.spring_forces, slice)
+    }
+}
+
+/// Net forces already summed per vertex (the phase-separated step).
+struct Summed<'a>(&'a Soa);
+
+impl SliceForces for Summed<'_> {
+    #[inline(always)]
+    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+        let [fx, fy, fz] = self.0.axes();
+        [
+            simd.load(&fx[slice]),
+            simd.load(&fy[slice]),
+            simd.load(&fz[slice]),
+        ]
+    }
+}
+
+/// The vertex pass every step ends with: each slice's net force (from `forces`, plus the
 /// extra forces), then Verlet. False if a new position in the chunk is not finite.
 #[inline(always)]
 fn integrate_chunk<S: Simd>(
@@ -611,15 +692,26 @@ fn integrate_chunk<S: Simd>(
     current: &Soa,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
-    force_of: impl Fn(usize) -> [S::V; 3],
+    forces: &impl SliceForces,
 ) -> bool {
     let mut probe = simd.splat(0.0);
-    for (slice, out) in slice_outputs(chunk) {
-        let force = add_extra(simd, force_of(slice), extra, slice);
-        probe = simd.add(
-            probe,
-            integrate_slice(simd, integrator, current, slice, force, out),
-        );
+    let outputs = slice_outputs(chunk.first_slice, chunk.next, chunk.delta);
+    // Two copies of the loop, one that writes no points: the structured meshes' steps.
+    match chunk.points {
+        None => {
+            for (slice, out) in outputs {
+                let force = add_extra(simd, forces.of(simd, slice), extra, slice);
+                let p = integrate_slice(simd, integrator, current, slice, force, out, None);
+                probe = simd.add(probe, p);
+            }
+        }
+        Some(points) => {
+            for ((slice, out), points) in outputs.zip(points) {
+                let force = add_extra(simd, forces.of(simd, slice), extra, slice);
+                let p = integrate_slice(simd, integrator, current, slice, force, out, Some(points));
+                probe = simd.add(probe, p);
+            }
+        }
     }
     is_finite_probe(simd, probe)
 }
@@ -630,12 +722,29 @@ fn gather_and_integrate_with<S: Simd>(
     table: &GatherTable,
     integrator: &Integrator,
     current: &Soa,
+    points: Option<&[Point]>,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    integrate_chunk(simd, integrator, current, extra, chunk, |slice| {
-        gather_slice(simd, table, current, slice)
-    })
+    // Two copies of the loop, one that never looks at points: the structured meshes' rows.
+    match points {
+        None => {
+            let forces = Gathered::<false> {
+                table,
+                current,
+                points: &[],
+            };
+            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+        }
+        Some(points) => {
+            let forces = Gathered::<true> {
+                table,
+                current,
+                points,
+            };
+            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+        }
+    }
 }
 
 dispatch! {
@@ -645,6 +754,7 @@ dispatch! {
         table: &GatherTable,
         integrator: &Integrator,
         current: &Soa,
+        points: Option<&[Point]>,
         extra: Option<&Soa>,
         chunk: VertexChunk<'_>,
     ) -> bool => gather_and_integrate_with
@@ -661,13 +771,19 @@ fn accumulate_and_integrate_with<S: Simd>(
     chunk: VertexChunk<'_>,
 ) -> bool {
     match spring_forces {
-        SpringForces::Axes(axes) => integrate_chunk(simd, integrator, current, extra, chunk, |s| {
-            accumulate_slice(simd, table, axes, s)
-        }),
+        SpringForces::Axes(spring_forces) => {
+            let forces = Accumulated {
+                table,
+                spring_forces,
+            };
+            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+        }
         SpringForces::Points(rows) => {
-            integrate_chunk(simd, integrator, current, extra, chunk, |s| {
-                accumulate_points_slice(simd, table, rows.as_flattened(), s)
-            })
+            let forces = AccumulatedPoints {
+                table,
+                spring_forces: rows.as_flattened(),
+            };
+            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
         }
     }
 }
@@ -766,7 +882,7 @@ dispatch! {
 }
 
 #[inline(always)]
-fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, force_of: impl Fn(usize) -> [S::V; 3]) {
+fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, forces: &impl SliceForces) {
     let [ox, oy, oz] = chunk.out;
     for (k, ((bx, by), bz)) in ox
         .iter_mut()
@@ -774,7 +890,7 @@ fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, force_of: impl Fn(usize
         .zip(oz.iter_mut())
         .enumerate()
     {
-        let [fx, fy, fz] = force_of(chunk.first_slice + k);
+        let [fx, fy, fz] = forces.of(simd, chunk.first_slice + k);
         simd.store(fx, bx);
         simd.store(fy, by);
         simd.store(fz, bz);
@@ -782,15 +898,41 @@ fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, force_of: impl Fn(usize
 }
 
 #[inline(always)]
-fn gather_forces_with<S: Simd>(simd: S, table: &GatherTable, current: &Soa, chunk: ForceChunk<'_>) {
-    store_forces(simd, chunk, |slice| {
-        gather_slice(simd, table, current, slice)
-    });
+fn gather_forces_with<S: Simd>(
+    simd: S,
+    table: &GatherTable,
+    current: &Soa,
+    points: Option<&[Point]>,
+    chunk: ForceChunk<'_>,
+) {
+    match points {
+        None => {
+            let forces = Gathered::<false> {
+                table,
+                current,
+                points: &[],
+            };
+            store_forces(simd, chunk, &forces);
+        }
+        Some(points) => {
+            let forces = Gathered::<true> {
+                table,
+                current,
+                points,
+            };
+            store_forces(simd, chunk, &forces);
+        }
+    }
 }
 
 dispatch! {
     /// Phase-separated gather (for per-phase timing): net spring force per vertex.
-    pub fn gather_forces(table: &GatherTable, current: &Soa, chunk: ForceChunk<'_>) -> () => gather_forces_with
+    pub fn gather_forces(
+        table: &GatherTable,
+        current: &Soa,
+        points: Option<&[Point]>,
+        chunk: ForceChunk<'_>,
+    ) -> () => gather_forces_with
 }
 
 #[inline(always)]
@@ -801,12 +943,20 @@ fn accumulate_forces_with<S: Simd>(
     chunk: ForceChunk<'_>,
 ) {
     match spring_forces {
-        SpringForces::Axes(axes) => {
-            store_forces(simd, chunk, |s| accumulate_slice(simd, table, axes, s))
+        SpringForces::Axes(spring_forces) => {
+            let forces = Accumulated {
+                table,
+                spring_forces,
+            };
+            store_forces(simd, chunk, &forces);
         }
-        SpringForces::Points(rows) => store_forces(simd, chunk, |s| {
-            accumulate_points_slice(simd, table, rows.as_flattened(), s)
-        }),
+        SpringForces::Points(rows) => {
+            let forces = AccumulatedPoints {
+                table,
+                spring_forces: rows.as_flattened(),
+            };
+            store_forces(simd, chunk, &forces);
+        }
     }
 }
 
@@ -825,14 +975,7 @@ fn integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let [fx, fy, fz] = forces.axes();
-    integrate_chunk(simd, integrator, current, extra, chunk, |slice| {
-        [
-            simd.load(&fx[slice]),
-            simd.load(&fy[slice]),
-            simd.load(&fz[slice]),
-        ]
-    })
+    integrate_chunk(simd, integrator, current, extra, chunk, &Summed(forces))
 }
 
 dispatch! {

@@ -122,6 +122,18 @@ enum Topology {
     },
 }
 
+impl Topology {
+    /// Whether the force pass reads the positions as points: its rows mostly load lane by
+    /// lane (gather's neighbour rows; scatter's incidence rows, whose spring forces are then
+    /// points too).
+    fn reads_points(&self) -> bool {
+        match self {
+            Self::Gather(table) => table.neighbor.mostly_gathered(),
+            Self::Scatter { spring_forces, .. } => matches!(spring_forces, SpringForces::Points(_)),
+        }
+    }
+}
+
 /// The float32 multithreaded solver.
 pub struct CpuSolver {
     options: CpuOptions,
@@ -144,9 +156,15 @@ pub struct CpuSolver {
     phase_forces: Soa,
     /// `x(t)`.
     current: Soa,
-    /// `x(t)` as one point per vertex, for force passes that gather positions lane by lane
-    /// (scatter on an irregular mesh; empty otherwise).
-    points: Vec<Point>,
+    /// Whether the force pass reads the positions as points (see [`Topology::reads_points`]).
+    reads_points: bool,
+    /// `x(t)` as one point per vertex, by slice, when the force pass reads them (else empty).
+    points: Vec<[Point; LANES]>,
+    /// Receives `x(t + dt)` as points from the integration; swapped with `points`.
+    next_points: Vec<[Point; LANES]>,
+    /// Whether `points` holds `x(t)`: the integration wrote them and nothing moved a vertex
+    /// after it (colliders, handles, self-collision) or since (`write_state`).
+    points_fresh: bool,
     /// Receives `x(t + dt)`; swapped with `current` after each step.
     next: Soa,
     /// `x(t) - x(t - dt)`, updated in place (see [`kernels`] for why not `x(t - dt)`).
@@ -203,7 +221,10 @@ impl CpuSolver {
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),
             current: Soa::zeros(slices),
+            reads_points: false,
             points: Vec::new(),
+            next_points: Vec::new(),
+            points_fresh: false,
             next: Soa::zeros(slices),
             delta: Soa::zeros(slices),
             inverse_masses: selfcollide::inverse_masses(model),
@@ -216,6 +237,7 @@ impl CpuSolver {
             steps_taken: 0,
         };
         solver.set_integrator();
+        solver.set_points();
         // The model's dampers act before any control is given.
         solver.set_external_forces();
         solver.write_state(&State::at_rest(model.initial_positions.clone()));
@@ -276,25 +298,32 @@ impl CpuSolver {
         }
     }
 
-    /// Bytes of `points` when the force pass reads them (see [`CpuSolver::pack_points`]).
+    /// Bytes of `points` and `next_points` when the force pass reads them.
     fn points_bytes(&self) -> usize {
-        if self.reads_points() {
-            self.numbering.padded_len * std::mem::size_of::<Point>()
-        } else {
-            0
-        }
+        std::mem::size_of_val(self.points.as_slice())
+            + std::mem::size_of_val(self.next_points.as_slice())
     }
 
-    /// Whether the force pass reads the positions as points: scatter's on a mesh whose rows
-    /// are gathered lane by lane.
-    fn reads_points(&self) -> bool {
-        matches!(
-            &self.topology,
-            Topology::Scatter {
-                spring_forces: SpringForces::Points(_),
-                ..
-            }
-        )
+    /// Sizes the point buffers for the topology: two rows of points per slice when its force
+    /// pass reads them, else none.
+    fn set_points(&mut self) {
+        self.reads_points = self.topology.reads_points();
+        let rows = if self.reads_points {
+            self.numbering.slice_count()
+        } else {
+            0
+        };
+        for points in [&mut self.points, &mut self.next_points] {
+            points.clear();
+            points.resize(rows, [[0.0; 4]; LANES]);
+        }
+        self.points_fresh = false;
+    }
+
+    /// Whether every vertex stays where the integration puts it (no colliders, handles or
+    /// self-collision), so the points it writes are the next step's positions.
+    fn positions_final_after_integration(&self) -> bool {
+        self.colliders.is_empty() && self.model.handles.is_empty() && self.self_collision.is_none()
     }
 
     /// Bytes one fused step must read or write at least once (the memory-bandwidth floor).
@@ -321,8 +350,8 @@ impl CpuSolver {
                         + 2 * spring_forces.bytes()
                 }
             }
-            // The points: written from the positions, read by the force pass.
-            + 2 * self.points_bytes()
+            // The points: written by the integration (or copied), read by the force pass.
+            + self.points_bytes()
     }
 
     fn compute_external(&mut self) -> bool {
@@ -437,20 +466,22 @@ impl CpuSolver {
             let torn = self.model.with_springs_broken(self.tears.flags());
             build_topology(&torn, &self.numbering, self.options.method, scale)
         };
+        self.set_points();
     }
 
     /// Forces and integration in one pass per vertex chunk; true if every result is finite.
     fn forces_and_integration_fused(&mut self, has_extra: bool) -> bool {
         let isa = self.options.instruction_set;
-        let points = self.pack_points().then_some(self.points.as_slice());
+        let points = self.refresh_points().then_some(self.points.as_flattened());
+        let writes_points = self.writes_points();
+        let next_points = writes_points.then_some(&mut self.next_points);
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
-        match &mut self.topology {
-            Topology::Gather(table) => {
-                for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
-                    kernels::gather_and_integrate(isa, table, integrator, current, extra, chunk)
-                })
-            }
+        let (next, delta) = (&mut self.next, &mut self.delta);
+        let all_finite = match &mut self.topology {
+            Topology::Gather(table) => for_each_vertex_chunk(next, delta, next_points, |chunk| {
+                kernels::gather_and_integrate(isa, table, integrator, current, points, extra, chunk)
+            }),
             Topology::Scatter {
                 springs,
                 incidence,
@@ -458,7 +489,7 @@ impl CpuSolver {
             } => {
                 compute_spring_forces(isa, springs, current, points, spring_forces);
                 let spring_forces = &*spring_forces;
-                for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
+                for_each_vertex_chunk(next, delta, next_points, |chunk| {
                     kernels::accumulate_and_integrate(
                         isa,
                         incidence,
@@ -470,7 +501,9 @@ impl CpuSolver {
                     )
                 })
             }
-        }
+        };
+        self.points_integrated(writes_points);
+        all_finite
     }
 
     /// Forces (and accumulation) into a per-vertex buffer, then integration, each pass timed.
@@ -480,14 +513,16 @@ impl CpuSolver {
             self.phase_forces = Soa::zeros(self.numbering.slice_count());
         }
         let start = Instant::now();
-        let points = self.pack_points().then_some(self.points.as_slice());
+        let points = self.refresh_points().then_some(self.points.as_flattened());
+        let writes_points = self.writes_points();
+        let next_points = writes_points.then_some(&mut self.next_points);
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let phase_forces = &mut self.phase_forces;
         match &mut self.topology {
             Topology::Gather(table) => {
                 for_each_force_chunk(phase_forces, |chunk| {
-                    kernels::gather_forces(isa, table, current, chunk)
+                    kernels::gather_forces(isa, table, current, points, chunk)
                 });
                 times.force_calculation = start.elapsed();
             }
@@ -508,33 +543,48 @@ impl CpuSolver {
         }
         let start = Instant::now();
         let phase_forces = &*phase_forces;
-        let all_finite = for_each_vertex_chunk(&mut self.next, &mut self.delta, |chunk| {
+        let (next, delta) = (&mut self.next, &mut self.delta);
+        let all_finite = for_each_vertex_chunk(next, delta, next_points, |chunk| {
             kernels::integrate(isa, integrator, current, phase_forces, extra, chunk)
         });
         times.integration = start.elapsed();
+        self.points_integrated(writes_points);
         all_finite
     }
 
-    /// Copies `x(t)` into `points` when the force pass reads them; true if it did.
-    fn pack_points(&mut self) -> bool {
-        if !self.reads_points() {
+    /// Makes `points` hold `x(t)` when the force pass reads them: those the last integration
+    /// wrote, else copied now. True if the force pass reads them.
+    fn refresh_points(&mut self) -> bool {
+        if !self.reads_points {
             return false;
         }
-        let [xs, ys, zs] = self.current.axes();
-        let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
-        self.points.resize(xs.len(), [0.0; 4]);
-        let per_task = SLICES_PER_TASK * LANES;
-        self.points
-            .par_chunks_mut(per_task)
-            .enumerate()
-            .for_each(|(task, out)| {
-                let first = task * per_task;
-                for (k, point) in out.iter_mut().enumerate() {
-                    let v = first + k;
-                    *point = [xs[v], ys[v], zs[v], 0.0];
-                }
-            });
+        if !self.points_fresh {
+            let [xs, ys, zs] = self.current.axes();
+            self.points
+                .par_iter_mut()
+                .zip(xs.par_iter().zip(ys.par_iter()).zip(zs.par_iter()))
+                .for_each(|(points, ((x, y), z))| {
+                    for (lane, point) in points.iter_mut().enumerate() {
+                        *point = [x[lane], y[lane], z[lane], 0.0];
+                    }
+                });
+            self.points_fresh = true;
+        }
         true
+    }
+
+    /// Whether the integration should write the next positions as points: the force pass reads
+    /// them, and nothing will move a vertex after the integration.
+    fn writes_points(&self) -> bool {
+        self.reads_points && self.positions_final_after_integration()
+    }
+
+    /// After an integration: the points it wrote (if it did) are the next step's.
+    fn points_integrated(&mut self, written: bool) {
+        if written {
+            std::mem::swap(&mut self.points, &mut self.next_points);
+        }
+        self.points_fresh = written;
     }
 
     /// Reports a dynamic ball that `collide` found non-finite, at the step just finished.
@@ -622,10 +672,16 @@ impl CpuSolver {
 fn for_each_vertex_chunk(
     next: &mut Soa,
     delta: &mut Soa,
+    next_points: Option<&mut Vec<[Point; LANES]>>,
     kernel: impl Fn(VertexChunk<'_>) -> bool + Sync,
 ) -> bool {
     let [nx, ny, nz] = next.axes_mut();
     let [dx, dy, dz] = delta.axes_mut();
+    let tasks = nx.len().div_ceil(SLICES_PER_TASK);
+    let points: Vec<Option<&mut [[Point; LANES]]>> = match next_points {
+        Some(points) => points.chunks_mut(SLICES_PER_TASK).map(Some).collect(),
+        None => (0..tasks).map(|_| None).collect(),
+    };
     nx.par_chunks_mut(SLICES_PER_TASK)
         .zip(ny.par_chunks_mut(SLICES_PER_TASK))
         .zip(nz.par_chunks_mut(SLICES_PER_TASK))
@@ -634,12 +690,14 @@ fn for_each_vertex_chunk(
                 .zip(dy.par_chunks_mut(SLICES_PER_TASK))
                 .zip(dz.par_chunks_mut(SLICES_PER_TASK)),
         )
+        .zip(points)
         .enumerate()
-        .map(|(task, (((nx, ny), nz), ((dx, dy), dz)))| {
+        .map(|(task, ((((nx, ny), nz), ((dx, dy), dz)), points))| {
             kernel(VertexChunk {
                 first_slice: task * SLICES_PER_TASK,
                 next: [nx, ny, nz],
                 delta: [dx, dy, dz],
+                points,
             })
         })
         .reduce(|| true, |a, b| a && b)
@@ -779,6 +837,7 @@ impl Solver for CpuSolver {
             self.current.set(k, p.as_vec3().to_array());
             self.delta.set(k, (*p - *q).as_vec3().to_array());
         }
+        self.points_fresh = false;
     }
 
     fn steps_taken(&self) -> u64 {
