@@ -30,6 +30,7 @@ use hooke_core::tearing::Tears;
 use hooke_core::{
     Control, Material, Model, SimError, Snapshot, Solver, State, TimingSource, selfcollide,
 };
+use rayon::iter::Either;
 use rayon::prelude::*;
 
 use external::ExternalForces;
@@ -677,10 +678,13 @@ fn for_each_vertex_chunk(
 ) -> bool {
     let [nx, ny, nz] = next.axes_mut();
     let [dx, dy, dz] = delta.axes_mut();
-    let tasks = nx.len().div_ceil(SLICES_PER_TASK);
-    let points: Vec<Option<&mut [[Point; LANES]]>> = match next_points {
-        Some(points) => points.chunks_mut(SLICES_PER_TASK).map(Some).collect(),
-        None => (0..tasks).map(|_| None).collect(),
+    // Each task's rows of points, or none for every task.
+    let points = match next_points {
+        Some(points) => Either::Left(points.par_chunks_mut(SLICES_PER_TASK).map(Some)),
+        None => {
+            let tasks = nx.len().div_ceil(SLICES_PER_TASK);
+            Either::Right(rayon::iter::repeat_n((), tasks).map(|()| None))
+        }
     };
     nx.par_chunks_mut(SLICES_PER_TASK)
         .zip(ny.par_chunks_mut(SLICES_PER_TASK))
