@@ -141,6 +141,7 @@ impl Shape {
 
     /// The sphere that stands in for this shape near `p`: a sphere itself, or for a capsule the
     /// sphere of its radius around the axis point closest to `p`.
+    #[inline]
     fn sphere_near(&self, p: DVec3) -> Option<(DVec3, f64)> {
         match *self {
             Shape::Sphere { center, radius } => Some((center, radius)),
@@ -153,6 +154,7 @@ impl Shape {
 }
 
 /// The point of the segment `start..end` closest to `p`.
+#[inline]
 pub fn closest_on_segment(start: DVec3, end: DVec3, p: DVec3) -> DVec3 {
     let axis = end - start;
     let length2 = axis.length_squared();
@@ -219,10 +221,17 @@ impl Collider {
     }
 
     /// Outward normal and depth of `p` inside the collider grown by `thickness`, if inside.
+    #[inline]
     pub fn penetration(&self, p: DVec3, thickness: f64) -> Option<(DVec3, f64)> {
         match (self.shape, self.shape.sphere_near(p)) {
             (_, Some((center, radius))) => {
                 let offset = p - center;
+                // Most vertices are far outside: rejected without a square root. The margin
+                // keeps the test conservative, so the ones it passes on meet the exact test.
+                let reach = radius + thickness;
+                if offset.length_squared() > reach * reach * (1.0 + 1e-9) {
+                    return None;
+                }
                 let distance = offset.length();
                 let depth = radius + thickness - distance;
                 (depth > 0.0).then(|| (offset.try_normalize().unwrap_or(DVec3::Y), depth))
@@ -261,15 +270,48 @@ pub fn resolve_and_report(
 ) -> DVec3 {
     let mut p = next;
     for (k, collider) in colliders.iter().enumerate() {
-        let collider = collider.at(t);
-        if let Some((normal, depth)) = collider.penetration(p, thickness) {
-            let before = p;
-            p += normal * depth;
-            let step = p - current - collider.velocity * dt;
-            let tangential = step - normal * step.dot(normal);
-            p -= tangential * collider.friction;
-            moved(k, p - before);
-        }
+        p = push_out(&collider.at(t), k, thickness, dt, current, p, &mut moved);
+    }
+    p
+}
+
+/// [`resolve_and_report`] with colliders already placed at the step's end
+/// ([`placed`]`(colliders, t)`), for callers that resolve many vertices: placing a collider
+/// copies it (a few hundred bytes with its path), which once per vertex cost more than the
+/// tests themselves.
+pub fn resolve_placed(
+    placed: &[Collider],
+    thickness: f64,
+    dt: f64,
+    current: DVec3,
+    next: DVec3,
+    mut moved: impl FnMut(usize, DVec3),
+) -> DVec3 {
+    let mut p = next;
+    for (k, collider) in placed.iter().enumerate() {
+        p = push_out(collider, k, thickness, dt, current, p, &mut moved);
+    }
+    p
+}
+
+/// Moves `p` out of collider `k` (placed), with friction, if it is inside.
+#[inline(always)]
+fn push_out(
+    collider: &Collider,
+    k: usize,
+    thickness: f64,
+    dt: f64,
+    current: DVec3,
+    mut p: DVec3,
+    moved: &mut impl FnMut(usize, DVec3),
+) -> DVec3 {
+    if let Some((normal, depth)) = collider.penetration(p, thickness) {
+        let before = p;
+        p += normal * depth;
+        let step = p - current - collider.velocity * dt;
+        let tangential = step - normal * step.dot(normal);
+        p -= tangential * collider.friction;
+        moved(k, p - before);
     }
     p
 }

@@ -7,7 +7,7 @@
 use glam::{DVec3, Vec3};
 
 use crate::collide::{
-    Collider, advance_balls, apply_pushes, first_non_finite_ball, placed, resolve_and_report,
+    Collider, advance_balls, apply_pushes, first_non_finite_ball, placed, resolve_placed,
     restore_balls,
 };
 use crate::diagnostics::{damper_force_on_a, spring_force_on_a};
@@ -83,6 +83,7 @@ impl ReferenceSolver {
         // Colliders are placed where they are at the end of this step.
         let t = self.steps_taken as f64 * dt;
         let mut pushes = vec![DVec3::ZERO; self.colliders.len()];
+        let placed = placed(&self.colliders, t);
         for i in 0..model.vertex_count() {
             let x = state.positions[i];
             let x_previous = state.previous_positions[i];
@@ -92,15 +93,9 @@ impl ReferenceSolver {
                 let total = self.forces[i] - material.damping * (x - x_previous) / dt;
                 let moved = total / model.masses[i] * dt * dt + 2.0 * x - x_previous;
                 let mass = model.masses[i];
-                resolve_and_report(
-                    &self.colliders,
-                    model.collision.thickness,
-                    t,
-                    dt,
-                    x,
-                    moved,
-                    |k, c| pushes[k] += c * mass,
-                )
+                resolve_placed(&placed, model.collision.thickness, dt, x, moved, |k, c| {
+                    pushes[k] += c * mass
+                })
             };
             if !next.is_finite() {
                 return Err(SimError::NonFinite {

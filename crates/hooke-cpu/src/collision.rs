@@ -72,12 +72,14 @@ impl CpuSolver {
         if self.colliders.is_empty() {
             return None;
         }
-        let (colliders, thickness) = (&self.colliders, self.model.collision.thickness);
+        let thickness = self.model.collision.thickness;
         // Colliders are placed where they are at the end of the step being finished.
         let (dt, t) = (
             self.material.dt,
             (self.steps_taken + 1) as f64 * self.material.dt,
         );
+        let colliders = collide::placed(&self.colliders, t);
+        let colliders = colliders.as_slice();
         let (current, scales) = (&self.current, &self.integrator.scales);
         let (real, count) = (self.model.vertex_count(), colliders.len());
         let (masses, original) = (&self.model.masses, &self.numbering.original);
@@ -111,16 +113,11 @@ impl CpuSolver {
                     );
                     let next = DVec3::new(nx[lane].into(), ny[lane].into(), nz[lane].into());
                     let mass = masses[original[k] as usize];
-                    let p = collide::resolve_and_report(
-                        colliders,
-                        thickness,
-                        t,
-                        dt,
-                        x,
-                        next,
-                        |c, moved| pushes[c] += moved * mass,
-                    )
-                    .as_vec3();
+                    let p =
+                        collide::resolve_placed(colliders, thickness, dt, x, next, |c, moved| {
+                            pushes[c] += moved * mass
+                        })
+                        .as_vec3();
                     (nx[lane], ny[lane], nz[lane]) = (p.x, p.y, p.z);
                     let d = p - x.as_vec3();
                     (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);
