@@ -255,30 +255,25 @@ pub fn resolve(
     current: DVec3,
     next: DVec3,
 ) -> DVec3 {
-    resolve_and_report(colliders, thickness, t, dt, current, next, |_, _| {})
-}
-
-/// [`resolve`], telling `moved(collider, c)` how far each collider moved the vertex.
-pub fn resolve_and_report(
-    colliders: &[Collider],
-    thickness: f64,
-    t: f64,
-    dt: f64,
-    current: DVec3,
-    next: DVec3,
-    mut moved: impl FnMut(usize, DVec3),
-) -> DVec3 {
     let mut p = next;
     for (k, collider) in colliders.iter().enumerate() {
-        p = push_out(&collider.at(t), k, thickness, dt, current, p, &mut moved);
+        p = push_out(
+            &collider.at(t),
+            k,
+            thickness,
+            dt,
+            current,
+            p,
+            &mut |_, _| {},
+        );
     }
     p
 }
 
-/// [`resolve_and_report`] with colliders already placed at the step's end
-/// ([`placed`]`(colliders, t)`), for callers that resolve many vertices: placing a collider
-/// copies it (a few hundred bytes with its path), which once per vertex cost more than the
-/// tests themselves.
+/// [`resolve`] with the colliders already placed at the step's end ([`placed`]`(colliders,
+/// t)`), telling `moved(collider, c)` how far each collider moved the vertex. Solvers place
+/// the colliders once per step: placing one copies it (a few hundred bytes with its path),
+/// which once per vertex cost more than the tests themselves.
 pub fn resolve_placed(
     placed: &[Collider],
     thickness: f64,

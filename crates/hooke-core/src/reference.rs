@@ -83,7 +83,7 @@ impl ReferenceSolver {
         // Colliders are placed where they are at the end of this step.
         let t = self.steps_taken as f64 * dt;
         let mut pushes = vec![DVec3::ZERO; self.colliders.len()];
-        let placed = placed(&self.colliders, t);
+        let colliders = placed(&self.colliders, t);
         for i in 0..model.vertex_count() {
             let x = state.positions[i];
             let x_previous = state.previous_positions[i];
@@ -93,9 +93,14 @@ impl ReferenceSolver {
                 let total = self.forces[i] - material.damping * (x - x_previous) / dt;
                 let moved = total / model.masses[i] * dt * dt + 2.0 * x - x_previous;
                 let mass = model.masses[i];
-                resolve_placed(&placed, model.collision.thickness, dt, x, moved, |k, c| {
-                    pushes[k] += c * mass
-                })
+                resolve_placed(
+                    &colliders,
+                    model.collision.thickness,
+                    dt,
+                    x,
+                    moved,
+                    |k, c| pushes[k] += c * mass,
+                )
             };
             if !next.is_finite() {
                 return Err(SimError::NonFinite {
