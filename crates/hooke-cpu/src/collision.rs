@@ -80,6 +80,11 @@ impl CpuSolver {
         );
         let colliders = collide::placed(&self.colliders, t);
         let colliders = colliders.as_slice();
+        let reaches: Vec<collide::Reach> = colliders
+            .iter()
+            .map(|c| collide::Reach::of(c, thickness))
+            .collect();
+        let reaches = reaches.as_slice();
         let (current, scales) = (&self.current, &self.integrator.scales);
         let (real, count) = (self.model.vertex_count(), colliders.len());
         let (masses, original) = (&self.model.masses, &self.numbering.original);
@@ -104,6 +109,14 @@ impl CpuSolver {
                 for lane in 0..LANES {
                     let k = slice * LANES + lane;
                     if k >= real || free[slice][lane] <= 0.0 {
+                        continue;
+                    }
+                    // Out of every collider's reach: the exact test would leave the position,
+                    // and the delta becomes next - x, as below.
+                    let next = Vec3::new(nx[lane], ny[lane], nz[lane]);
+                    if !reaches.iter().any(|r| r.may_touch(next)) {
+                        let d = next - Vec3::new(cx[slice][lane], cy[slice][lane], cz[slice][lane]);
+                        (dx[lane], dy[lane], dz[lane]) = (d.x, d.y, d.z);
                         continue;
                     }
                     let x = DVec3::new(
