@@ -2,7 +2,7 @@
 //! balls, and self-collision (`hooke_core::selfcollide`).
 
 use glam::{DVec3, Vec3};
-use hooke_core::{collide, handles, selfcollide};
+use hooke_core::{collide, handles};
 use rayon::prelude::*;
 
 use crate::CpuSolver;
@@ -23,8 +23,7 @@ impl CpuSolver {
                 .par_iter()
                 .map(|&k| Vec3::from_array(next.get(k as usize))),
         );
-        let moves = selfcollide::resolve_with(
-            &mut self.binning,
+        let moves = self.self_collider.resolve(
             positions,
             &self.inverse_masses,
             &self.model.adjacency,

@@ -147,8 +147,8 @@ pub struct CpuSolver {
     material: Material,
     control: Control,
     self_collision: Option<SelfCollision>,
-    /// Self-collision's sort buffers, kept between steps.
-    binning: selfcollide::Binning,
+    /// Self-collision's sort buffers and culling, kept between steps.
+    self_collider: selfcollide::Resolver,
     /// Scratch of `self_collide`: the new positions in mesh order.
     self_collision_positions: Vec<Vec3>,
     external: Option<ExternalForces>,
@@ -216,7 +216,7 @@ impl CpuSolver {
             material: *material,
             control: Control::default(),
             self_collision: model.collision.self_collision,
-            binning: selfcollide::Binning::default(),
+            self_collider: selfcollide::Resolver::default(),
             self_collision_positions: Vec::new(),
             external: None,
             extra_forces: Soa::default(),

@@ -19,14 +19,15 @@
 //! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
 
 mod binning;
+mod culling;
 
 use std::collections::HashMap;
 
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
-pub use binning::Binning;
-use binning::{Entry, key_of, vertex_of};
+use binning::{Binning, Entry, key_of, vertex_of};
+pub use culling::Culling;
 
 use crate::{Adjacency, Model};
 
@@ -221,8 +222,41 @@ pub fn resolve(
     )
 }
 
-/// [`resolve`] with sort buffers kept by the caller from one step to the next.
-pub fn resolve_with(
+/// Self-collision's state kept by a solver from one step to the next: the sort's buffers, and
+/// the culling that proves, most steps, that the passes would move nothing.
+#[derive(Debug, Default)]
+pub struct Resolver {
+    binning: Binning,
+    culling: Culling,
+}
+
+impl Resolver {
+    /// [`resolve`]: the same moves in the same order. The passes are skipped when the culling
+    /// shows that no unjoined pair is closer than the distance, since then none would move.
+    pub fn resolve(
+        &mut self,
+        positions: &mut [Vec3],
+        weights: &[f32],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+    ) -> Vec<(u32, Vec3)> {
+        if self
+            .culling
+            .clear(positions, adjacency, config.distance as f32)
+        {
+            return Vec::new();
+        }
+        resolve_with(&mut self.binning, positions, weights, adjacency, config)
+    }
+
+    /// The culling, with its counts of steps cleared and not.
+    pub fn culling(&self) -> &Culling {
+        &self.culling
+    }
+}
+
+/// [`resolve`] with sort buffers kept from one step to the next.
+fn resolve_with(
     binning: &mut Binning,
     positions: &mut [Vec3],
     weights: &[f32],

@@ -1,0 +1,744 @@
+//! A proof, renewed every step, that no unjoined pair of vertices is closer than the
+//! self-collision distance. When it holds, every grid's pass would find nothing to push, so
+//! the passes are skipped and the step gives the same bits; when it fails anywhere, they run.
+//!
+//! Vertices are grouped into patches of up to [`PATCH`], close together where they were first
+//! seen (Morton order of those positions). Each patch keeps reference positions `R_i`, taken
+//! when its shape was last renewed. Each step its vertices' displacements `u_i = x_i - R_i` are
+//! split into the centre `c_P` of their bounding box and a remainder of at most `E_P`, so for
+//! `i` in `P` and `j` in `Q`
+//!
+//! ```text
+//! |x_i - x_j| >= |(R_i + c_P) - (R_j + c_Q)| - E_P - E_Q.
+//! ```
+//!
+//! A patch renews its references when `E_P` grows past a quarter of its slack (it bends or
+//! turns); a pure translation costs nothing.
+//!
+//! - **Near pairs** (patches within two springs of each other on the mesh, and each patch
+//!   with itself) keep the smallest unjoined `|(R_i + c_P) - (R_j + c_Q)|` when it was last
+//!   measured, `g_PQ`, and the `c_P - c_Q` of then. The first term above can only have shrunk
+//!   by how far `c_P - c_Q` has moved since, so the pair is clear while
+//!   `g_PQ - |Δ(c_P - c_Q)| - E_P - E_Q >= distance + margin`. Otherwise `g_PQ` is measured
+//!   again, and failing that, the vertices themselves.
+//! - **Far pairs** are clear when their bounding boxes lie further apart than the distance
+//!   along some axis: a bounding volume hierarchy over the patches (Morton order, refitted each
+//!   step) finds the few that do not, whose vertices are then measured.
+//!
+//! Verlet neighbour lists (a skin around each particle, rebuilt when particles have moved
+//! further than it) work the same way; the patches make a falling or swinging sheet, whose
+//! vertices all move far but together, cost nothing more than one at rest. Everything is
+//! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::Adjacency;
+
+/// Most vertices in one patch (an 8 x 8 block of a grid).
+pub const PATCH: usize = 64;
+
+/// Patches per subtree below which the hierarchy is searched on the calling thread.
+const PARALLEL_PATCHES: u32 = 64;
+
+/// A patch: its state this step and since its references were taken.
+#[derive(Clone, Copy, Debug)]
+struct Patch {
+    /// `c_P`: centre of the displacements' bounding box, m.
+    centre: Vec3,
+    /// `E_P`: the largest distance of a displacement from `centre`, m.
+    spread: f32,
+    /// Bumped each time the references are renewed (cached gaps must be measured again).
+    version: u32,
+    /// The smallest `g_PQ` over its near pairs measured since the references were taken, m.
+    closest: f32,
+    /// Bounding box of the current positions, m.
+    low: Vec3,
+    high: Vec3,
+}
+
+/// A pair of near patches and what was measured of it.
+#[derive(Clone, Copy, Debug)]
+struct NearPair {
+    patches: [u32; 2],
+    /// `g_PQ`, m.
+    gap: f32,
+    /// `c_P - c_Q` when `gap` was measured.
+    offset: Vec3,
+    /// The patches' versions when `gap` was measured (`u32::MAX`: never).
+    versions: [u32; 2],
+    /// Whether `gap` was measured this step.
+    fresh: bool,
+}
+
+/// A node of the hierarchy over patches `first..end`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    first: u32,
+    end: u32,
+    /// Indices of the two halves, `None` for a single patch.
+    children: Option<[u32; 2]>,
+    low: Vec3,
+    high: Vec3,
+}
+
+/// The culling's state, kept by a solver from one step to the next.
+#[derive(Debug, Default)]
+pub struct Culling {
+    /// Vertex count and adjacency entries it was built for.
+    built_for: (usize, usize),
+    /// Every vertex, patch after patch (`PATCH` slots each, the last one shorter).
+    members: Vec<u32>,
+    /// `R_i`, in the order of `members`.
+    references: Vec<Vec3>,
+    /// The patch and slot within it of each vertex.
+    patch_of: Vec<u32>,
+    slot_of: Vec<u8>,
+    patches: Vec<Patch>,
+    near: Vec<NearPair>,
+    /// Each patch's near patches, sorted (rows of a CSR table).
+    near_offsets: Vec<u32>,
+    near_patches: Vec<u32>,
+    /// The hierarchy, root first, every node before its children.
+    nodes: Vec<Node>,
+    /// Steps cleared, and steps whose passes had to run.
+    pub cleared: u64,
+    pub uncleared: u64,
+}
+
+/// What one step's check needs besides the culling.
+struct Check<'a> {
+    positions: &'a [Vec3],
+    adjacency: &'a Adjacency,
+    /// The distance plus the margin: a pair at least this far apart is clear.
+    clear_at: f32,
+}
+
+impl Culling {
+    /// True if no unjoined pair of `positions` is closer than `distance` (vertices joined by
+    /// a spring of `adjacency` do not count). Builds itself on the first call, and again when
+    /// the vertex or spring count changes.
+    pub fn clear(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> bool {
+        let cleared = self.check(positions, adjacency, distance);
+        if cleared {
+            self.cleared += 1;
+        } else {
+            self.uncleared += 1;
+        }
+        cleared
+    }
+
+    fn check(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> bool {
+        if positions.is_empty() {
+            return true;
+        }
+        if self.built_for != (positions.len(), adjacency.neighbors.len()) {
+            self.build(positions, adjacency);
+        }
+        let Some(scale) = self.measure_patches(positions, distance) else {
+            return false;
+        };
+        // Rounding: a few units in the last place of the largest coordinate in each quantity
+        // the bound adds up, and a thousandth of the distance besides.
+        let check = Check {
+            positions,
+            adjacency,
+            clear_at: distance * 1.001 + scale * 1e-5,
+        };
+        self.near_pairs_clear(&check) && self.far_pairs_clear(&check)
+    }
+
+    /// Patches, their near pairs and the hierarchy, for `positions` as they are now.
+    fn build(&mut self, positions: &[Vec3], adjacency: &Adjacency) {
+        let n = positions.len();
+        let (low, high) = bounds(positions);
+        let extent = (high - low).max_element().max(f32::MIN_POSITIVE);
+        let mut order: Vec<(u64, u32)> = positions
+            .iter()
+            .enumerate()
+            .map(|(v, &p)| (morton((p - low) / extent), v as u32))
+            .collect();
+        order.par_sort_unstable();
+        self.members = order.into_iter().map(|(_, v)| v).collect();
+        self.patch_of = vec![0; n];
+        self.slot_of = vec![0; n];
+        for (slot, &v) in self.members.iter().enumerate() {
+            self.patch_of[v as usize] = (slot / PATCH) as u32;
+            self.slot_of[v as usize] = (slot % PATCH) as u8;
+        }
+        self.references = self
+            .members
+            .iter()
+            .map(|&v| positions[v as usize])
+            .collect();
+        let count = n.div_ceil(PATCH);
+        self.patches = vec![
+            Patch {
+                centre: Vec3::ZERO,
+                spread: 0.0,
+                version: 0,
+                closest: f32::INFINITY,
+                low: Vec3::ZERO,
+                high: Vec3::ZERO,
+            };
+            count
+        ];
+        // Near: patches holding a vertex within two springs of one of the patch's.
+        let rows: Vec<Vec<u32>> = (0..count)
+            .into_par_iter()
+            .map(|p| {
+                let mut row = Vec::new();
+                for &v in &self.members[p * PATCH..((p + 1) * PATCH).min(n)] {
+                    for &w in neighbours(adjacency, v) {
+                        row.push(self.patch_of[w as usize]);
+                        for &u in neighbours(adjacency, w) {
+                            row.push(self.patch_of[u as usize]);
+                        }
+                    }
+                }
+                row.push(p as u32);
+                row.sort_unstable();
+                row.dedup();
+                row
+            })
+            .collect();
+        self.near_offsets = std::iter::once(0)
+            .chain(rows.iter().scan(0, |end, row| {
+                *end += row.len() as u32;
+                Some(*end)
+            }))
+            .collect();
+        self.near = rows
+            .iter()
+            .enumerate()
+            .flat_map(|(p, row)| {
+                row.iter()
+                    .filter(move |&&q| q >= p as u32)
+                    .map(move |&q| NearPair {
+                        patches: [p as u32, q],
+                        gap: 0.0,
+                        offset: Vec3::ZERO,
+                        versions: [u32::MAX; 2],
+                        fresh: false,
+                    })
+            })
+            .collect();
+        self.near_patches = rows.into_iter().flatten().collect();
+        self.nodes.clear();
+        self.add_node(0, count as u32);
+        self.built_for = (n, adjacency.neighbors.len());
+    }
+
+    /// Adds the subtree over patches `first..end`; returns its root's index.
+    fn add_node(&mut self, first: u32, end: u32) -> u32 {
+        let index = self.nodes.len() as u32;
+        self.nodes.push(Node {
+            first,
+            end,
+            children: None,
+            low: Vec3::ZERO,
+            high: Vec3::ZERO,
+        });
+        if end - first > 1 {
+            let middle = first + (end - first) / 2;
+            let children = [self.add_node(first, middle), self.add_node(middle, end)];
+            self.nodes[index as usize].children = Some(children);
+        }
+        index
+    }
+
+    /// Each patch's centre, spread and box this step, renewing the references of patches
+    /// that spread past their slack; then the hierarchy's boxes. Returns the largest
+    /// coordinate seen, or `None` if a position is not finite.
+    fn measure_patches(&mut self, positions: &[Vec3], distance: f32) -> Option<f32> {
+        let scale = self
+            .patches
+            .par_iter_mut()
+            .zip(self.references.par_chunks_mut(PATCH))
+            .zip(self.members.par_chunks(PATCH))
+            .map(|((patch, references), members)| {
+                measure_patch(patch, references, members, positions, distance)
+            })
+            .try_reduce(|| 0.0, |a, b| Some(a.max(b)))?;
+        for i in (0..self.nodes.len()).rev() {
+            let node = self.nodes[i];
+            let (low, high) = match node.children {
+                None => {
+                    let patch = &self.patches[node.first as usize];
+                    (patch.low, patch.high)
+                }
+                Some([a, b]) => {
+                    let (a, b) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+                    (a.low.min(b.low), a.high.max(b.high))
+                }
+            };
+            self.nodes[i].low = low;
+            self.nodes[i].high = high;
+        }
+        Some(scale)
+    }
+
+    /// Checks every near pair (all of them, so each keeps its cache up to date).
+    fn near_pairs_clear(&mut self, check: &Check) -> bool {
+        let this = &*self;
+        let verdicts: Vec<(bool, Option<f32>)> = this
+            .near
+            .par_iter()
+            .map(|pair| this.near_pair_clear(pair, check))
+            .collect();
+        let mut clear = true;
+        for (pair, (pair_clear, measured)) in self.near.iter_mut().zip(verdicts) {
+            clear &= pair_clear;
+            pair.fresh = measured.is_some();
+            if let Some(gap) = measured {
+                let [p, q] = pair.patches;
+                let (a, b) = (self.patches[p as usize], self.patches[q as usize]);
+                *pair = NearPair {
+                    gap,
+                    offset: a.centre - b.centre,
+                    versions: [a.version, b.version],
+                    ..*pair
+                };
+                for patch in [p, q] {
+                    let patch = &mut self.patches[patch as usize];
+                    patch.closest = patch.closest.min(gap);
+                }
+            }
+        }
+        clear
+    }
+
+    /// Whether one near pair is clear, and its gap if it had to be measured again.
+    fn near_pair_clear(&self, pair: &NearPair, check: &Check) -> (bool, Option<f32>) {
+        let [p, q] = pair.patches;
+        let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
+        if pair.versions == [a.version, b.version] {
+            let drift = (a.centre - b.centre - pair.offset).length();
+            if pair.gap - drift - a.spread - b.spread >= check.clear_at {
+                return (true, None);
+            }
+        }
+        let placed = |slot: usize| self.references[slot] + self.patches[slot / PATCH].centre;
+        let gap = self.closest_unjoined(check.adjacency, [p, q], placed);
+        if gap - a.spread - b.spread >= check.clear_at {
+            return (true, Some(gap));
+        }
+        let current = |slot: usize| check.positions[self.members[slot] as usize];
+        let closest = self.closest_unjoined(check.adjacency, [p, q], current);
+        (closest >= check.clear_at, Some(gap))
+    }
+
+    /// Whether every pair of patches that are not near is clear.
+    fn far_pairs_clear(&self, check: &Check) -> bool {
+        self.clear_within(0, check)
+    }
+
+    fn clear_within(&self, node: u32, check: &Check) -> bool {
+        let node = &self.nodes[node as usize];
+        let Some([a, b]) = node.children else {
+            return true;
+        };
+        let (within_a, within_b) = if node.end - node.first >= PARALLEL_PATCHES {
+            rayon::join(
+                || self.clear_within(a, check),
+                || self.clear_within(b, check),
+            )
+        } else {
+            (self.clear_within(a, check), self.clear_within(b, check))
+        };
+        within_a && within_b && self.clear_between(a, b, check)
+    }
+
+    fn clear_between(&self, a: u32, b: u32, check: &Check) -> bool {
+        let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+        let gaps = (na.low - nb.high).max(nb.low - na.high);
+        if gaps.max_element() >= check.clear_at {
+            return true;
+        }
+        // Split the larger node (a single patch cannot be).
+        let ([first, second], split_a) = match (na.children, nb.children) {
+            (None, None) => {
+                let (p, q) = (na.first, nb.first);
+                let current = |slot: usize| check.positions[self.members[slot] as usize];
+                return self.near(p, q)
+                    || self.closest_unjoined(check.adjacency, [p, q], current) >= check.clear_at;
+            }
+            (Some(halves), None) => (halves, true),
+            (None, Some(halves)) => (halves, false),
+            (Some(halves_a), Some(halves_b)) => {
+                if na.end - na.first >= nb.end - nb.first {
+                    (halves_a, true)
+                } else {
+                    (halves_b, false)
+                }
+            }
+        };
+        if split_a {
+            self.clear_between(first, b, check) && self.clear_between(second, b, check)
+        } else {
+            self.clear_between(a, first, check) && self.clear_between(a, second, check)
+        }
+    }
+
+    fn near(&self, p: u32, q: u32) -> bool {
+        let row =
+            self.near_offsets[p as usize] as usize..self.near_offsets[p as usize + 1] as usize;
+        self.near_patches[row].binary_search(&q).is_ok()
+    }
+
+    /// Slots of patch `p` in `members`.
+    fn slots(&self, p: u32) -> std::ops::Range<usize> {
+        let first = p as usize * PATCH;
+        first..(first + PATCH).min(self.members.len())
+    }
+
+    /// The smallest distance between a vertex of patch `p` and one of patch `q` that no spring
+    /// joins (not a vertex and itself), with each vertex at `point(slot)`.
+    fn closest_unjoined(
+        &self,
+        adjacency: &Adjacency,
+        [p, q]: [u32; 2],
+        point: impl Fn(usize) -> Vec3,
+    ) -> f32 {
+        // `q`'s points by axis, unused slots far away, so each row below is a plain loop.
+        let mut others = [[f32::INFINITY; PATCH]; 3];
+        for (k, slot) in self.slots(q).enumerate() {
+            let x = point(slot);
+            (others[0][k], others[1][k], others[2][k]) = (x.x, x.y, x.z);
+        }
+        let mut closest = f32::INFINITY;
+        for slot in self.slots(p) {
+            let x = point(slot);
+            let mut squared = [0.0f32; PATCH];
+            for (k, s) in squared.iter_mut().enumerate() {
+                let d = [others[0][k] - x.x, others[1][k] - x.y, others[2][k] - x.z];
+                *s = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            }
+            let v = self.members[slot];
+            if p == q {
+                squared[slot % PATCH] = f32::INFINITY;
+            }
+            for &w in neighbours(adjacency, v) {
+                if self.patch_of[w as usize] == q {
+                    squared[self.slot_of[w as usize] as usize] = f32::INFINITY;
+                }
+            }
+            closest = squared.iter().fold(closest, |a, &b| smaller(a, b));
+        }
+        closest.sqrt()
+    }
+}
+
+/// One patch's step: see [`Culling::measure_patches`]. Returns its largest coordinate, or
+/// `None` if a position is not finite.
+fn measure_patch(
+    patch: &mut Patch,
+    references: &mut [Vec3],
+    members: &[u32],
+    positions: &[Vec3],
+    distance: f32,
+) -> Option<f32> {
+    let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let (mut moved_low, mut moved_high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let (mut finite, mut references_finite, mut scale) = (true, true, 0.0f32);
+    for (&v, &reference) in members.iter().zip(&*references) {
+        let x = positions[v as usize];
+        finite &= x.is_finite();
+        references_finite &= reference.is_finite();
+        (low, high) = (low.min(x), high.max(x));
+        let moved = x - reference;
+        (moved_low, moved_high) = (moved_low.min(moved), moved_high.max(moved));
+        scale = scale.max(reference.abs().max_element());
+    }
+    if !finite {
+        return None;
+    }
+    let centre = 0.5 * (moved_low + moved_high);
+    let spread = members
+        .iter()
+        .zip(&*references)
+        .map(|(&v, &reference)| (positions[v as usize] - reference - centre).length_squared())
+        .fold(0.0f32, |a, b| if b > a { b } else { a })
+        .sqrt();
+    // A quarter of the slack its near pairs had when measured (and a tenth of the distance
+    // while none is measured or one is in contact), so a patch renews only when it has bent
+    // or turned enough to matter. (The spread skips NaN: references that are not finite, say
+    // taken from a state that was, are renewed.)
+    let renew_above = (0.25 * (patch.closest - distance)).max(0.1 * distance);
+    if references_finite && spread <= renew_above {
+        (patch.centre, patch.spread) = (centre, spread);
+    } else {
+        for (&v, reference) in members.iter().zip(references.iter_mut()) {
+            *reference = positions[v as usize];
+        }
+        (patch.centre, patch.spread) = (Vec3::ZERO, 0.0);
+        patch.version = patch.version.wrapping_add(1) % u32::MAX;
+        patch.closest = f32::INFINITY;
+    }
+    (patch.low, patch.high) = (low, high);
+    Some(scale.max(low.abs().max(high.abs()).max_element()))
+}
+
+/// The smaller of two finite floats, in one vector instruction (`f32::min` also handles NaN,
+/// which keeps a loop of it from vectorising).
+fn smaller(a: f32, b: f32) -> f32 {
+    if b < a { b } else { a }
+}
+
+fn neighbours(adjacency: &Adjacency, v: u32) -> &[u32] {
+    let row = adjacency.offsets[v as usize] as usize..adjacency.offsets[v as usize + 1] as usize;
+    &adjacency.neighbors[row]
+}
+
+fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
+    points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), &p| {
+            (low.min(p), high.max(p))
+        })
+}
+
+/// Morton code of a point in the unit cube, 21 bits per axis.
+fn morton(unit: Vec3) -> u64 {
+    let spread = |x: f32| {
+        let mut v = ((x.clamp(0.0, 1.0) * ((1 << 21) - 1) as f32) as u64) & 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        (v | v << 2) & 0x1249_2492_4924_9249
+    };
+    spread(unit.x) | spread(unit.y) << 1 | spread(unit.z) << 2
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{RngExt, SeedableRng};
+
+    use super::*;
+    use crate::selfcollide::{Resolver, SelfCollision, exact_pairs, resolve};
+
+    /// The springs of a triangulated grid, `columns` vertices a row.
+    fn grid_springs(columns: u32, rows: u32) -> Vec<[u32; 2]> {
+        let index = |i: u32, j: u32| i * columns + j;
+        let mut ends = Vec::new();
+        for i in 0..rows {
+            for j in 0..columns {
+                if j + 1 < columns {
+                    ends.push([index(i, j), index(i, j + 1)]);
+                }
+                if i + 1 < rows {
+                    ends.push([index(i, j), index(i + 1, j)]);
+                    if j + 1 < columns {
+                        ends.push([index(i, j), index(i + 1, j + 1)]);
+                    }
+                }
+            }
+        }
+        ends
+    }
+
+    /// The sheet at step `t` of `steps`: falling, turning about the vertical, its far part
+    /// folded over a crease until it lies on the near part, every vertex jittered.
+    fn folding_sheet(
+        side: u32,
+        spacing: f32,
+        t: u32,
+        steps: u32,
+        rng: &mut impl rand::Rng,
+    ) -> Vec<Vec3> {
+        let crease = 0.55 * side as f32 * spacing;
+        let angle = std::f32::consts::PI * (t as f32 / steps as f32).powf(0.7);
+        let turn = glam::Quat::from_rotation_y(0.03 * t as f32);
+        (0..side * side)
+            .map(|v| {
+                let (x, z) = ((v % side) as f32 * spacing, (v / side) as f32 * spacing);
+                let folded = if x > crease {
+                    let r = x - crease;
+                    Vec3::new(crease + r * angle.cos(), r * angle.sin(), z)
+                } else {
+                    Vec3::new(x, 0.0, z)
+                };
+                let jitter = Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
+                turn * folded + Vec3::new(0.0, -0.004 * t as f32, 0.0) + 0.05 * spacing * jitter
+            })
+            .collect()
+    }
+
+    /// Two sheets, unconnected: the lower one at rest, the upper one turning and sinking
+    /// onto it from four distances above to a third of the distance.
+    fn stacked_sheets(
+        side: u32,
+        spacing: f32,
+        t: u32,
+        steps: u32,
+        rng: &mut impl rand::Rng,
+    ) -> Vec<Vec3> {
+        // Apart when the patches are made, so no patch holds vertices of both sheets.
+        let height = if t == 0 {
+            1.0
+        } else {
+            spacing * (2.0 - 1.85 * t as f32 / steps as f32)
+        };
+        let turn = glam::Quat::from_rotation_y(0.01 * t as f32);
+        (0..2 * side * side)
+            .map(|v| {
+                let (x, z) = (
+                    ((v % side) as f32 - 0.5 * side as f32) * spacing,
+                    ((v / side) % side) as f32 * spacing,
+                );
+                let jitter =
+                    0.02 * spacing * (Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5);
+                if v < side * side {
+                    Vec3::new(x, 0.0, z) + jitter
+                } else {
+                    turn * Vec3::new(x, 0.0, z) + Vec3::new(0.0, height, 0.0) + jitter
+                }
+            })
+            .collect()
+    }
+
+    /// One sheet whose vertices slide in its plane along a few smooth waves that grow with
+    /// `t`, until the sheet is squeezed to a fraction of its spacing in places.
+    fn squeezed_sheet(
+        side: u32,
+        spacing: f32,
+        t: u32,
+        steps: u32,
+        _: &mut impl rand::Rng,
+    ) -> Vec<Vec3> {
+        let amplitude = 0.25 * spacing * side as f32 / 6.0 * (t as f32 / steps as f32);
+        (0..side * side)
+            .map(|v| {
+                let (x, z) = ((v % side) as f32 * spacing, (v / side) as f32 * spacing);
+                let wave = |fx: f32, fz: f32, phase: f32| {
+                    (std::f32::consts::TAU * (fx * x + fz * z) / (side as f32 * spacing)
+                        + phase
+                        + 0.05 * t as f32)
+                        .sin()
+                };
+                let slide = Vec3::new(
+                    wave(2.0, 0.5, 0.3) + 0.5 * wave(1.0, 3.0, 1.1),
+                    0.2 * wave(1.5, 1.5, 2.0),
+                    wave(0.5, 2.5, 0.7) + 0.5 * wave(3.0, 1.0, 2.9),
+                );
+                Vec3::new(x, -0.002 * t as f32, z) + amplitude * slide
+            })
+            .collect()
+    }
+
+    #[test]
+    fn culled_steps_give_the_same_moves_as_the_plain_passes() {
+        type Script = fn(u32, f32, u32, u32, &mut rand_chacha::ChaCha8Rng) -> Vec<Vec3>;
+        let (spacing, steps) = (0.01, 80);
+        let config = SelfCollision {
+            distance: 0.5 * spacing as f64,
+            cell_size: spacing as f64,
+            grids: 4,
+            window: 4,
+        };
+        let scripts: [(&str, Script, u32, u32); 3] = [
+            ("fold", folding_sheet, 40, 1),
+            ("stacked", stacked_sheets, 32, 2),
+            ("squeezed", squeezed_sheet, 48, 1),
+        ];
+        for (name, script, side, sheets) in scripts {
+            let one = grid_springs(side, side);
+            // Each sheet its own copy of the grid's springs.
+            let ends: Vec<[u32; 2]> = (0..sheets)
+                .flat_map(|s| {
+                    one.iter()
+                        .map(move |&[a, b]| [a + s * side * side, b + s * side * side])
+                })
+                .collect();
+            let n = (sheets * side * side) as usize;
+            let adjacency = Adjacency::from_springs(n, &ends);
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+            let weights: Vec<f32> = (0..n)
+                .map(|v| {
+                    if v == 0 {
+                        0.0
+                    } else {
+                        1.0 + rng.random::<f32>()
+                    }
+                })
+                .collect();
+            let mut resolver = Resolver::default();
+            let mut moved_steps = 0;
+            for t in 0..=steps {
+                let start = script(side, spacing, t, steps, &mut rng);
+                let (mut plain, mut culled) = (start.clone(), start);
+                let expected = resolve(&mut plain, &weights, &adjacency, &config);
+                let moves = resolver.resolve(&mut culled, &weights, &adjacency, &config);
+                assert_eq!(moves, expected, "{name}, step {t}");
+                assert_eq!(culled, plain, "{name}, step {t}");
+                moved_steps += usize::from(!moves.is_empty());
+            }
+            let culling = resolver.culling();
+            // Each script must show both: steps proved clear, and steps with pairs to push.
+            assert!(culling.cleared > 20, "{name}: cleared {}", culling.cleared);
+            assert!(
+                moved_steps > 5,
+                "{name}: only {moved_steps} steps moved vertices"
+            );
+            assert!(culling.uncleared >= moved_steps as u64);
+            eprintln!(
+                "{name}: cleared {}, not {}, moved {moved_steps}",
+                culling.cleared, culling.uncleared
+            );
+        }
+    }
+
+    /// Every verdict of `clear` against the exact search, on a grid squeezed along x until
+    /// each vertex's unjoined neighbour two along lies 1.1 distances away: one vertex nudged,
+    /// or one patch moved whole, by 0.15 distances makes contact that only the patch's spread,
+    /// or only its drift from the patch beside it, can show (neither renews the patch).
+    #[test]
+    fn clear_answers_whether_any_unjoined_pair_is_closer_than_the_distance() {
+        let (rows, spacing, distance) = (32u32, 0.01f32, 0.005f32);
+        let squeeze = 1.1 * distance / (2.0 * spacing);
+        // As wide as it is deep once squeezed, so patches hold parts of rows.
+        let columns = (rows as f32 / squeeze) as u32;
+        let n = columns * rows;
+        let adjacency = Adjacency::from_springs(n as usize, &grid_springs(columns, rows));
+        let base = |t: u32| -> Vec<Vec3> {
+            (0..n)
+                .map(|v| {
+                    let (j, i) = (v % columns, v / columns);
+                    let (x, z) = (j as f32 * spacing * squeeze, i as f32 * spacing);
+                    Vec3::new(x, -0.001 * t as f32, z)
+                })
+                .collect()
+        };
+        let mut culling = Culling::default();
+        let mut t = 0;
+        let check = |culling: &mut Culling, positions: &[Vec3], expected: bool| {
+            let exact = exact_pairs(positions, &adjacency, f64::from(distance)).is_empty();
+            assert_eq!(exact, expected, "the test's own state");
+            assert_eq!(culling.clear(positions, &adjacency, distance), expected);
+        };
+        for _ in 0..4 {
+            t += 1;
+            check(&mut culling, &base(t), true);
+        }
+        let nudge = Vec3::new(0.15 * distance, 0.0, 0.0);
+        for v in [3 * columns + 5, 17 * columns + 60, 30 * columns + 100] {
+            t += 1;
+            let mut nudged = base(t);
+            nudged[v as usize] += nudge;
+            check(&mut culling, &nudged, false);
+            t += 1;
+            check(&mut culling, &base(t), true);
+        }
+        for patch in [5, 20, 40] {
+            t += 1;
+            let mut moved = base(t);
+            for &v in &culling.members[culling.slots(patch)] {
+                moved[v as usize] -= nudge;
+            }
+            check(&mut culling, &moved, false);
+            t += 1;
+            check(&mut culling, &base(t), true);
+        }
+    }
+}
