@@ -25,6 +25,12 @@
 //!   along some axis: a bounding volume hierarchy over the patches (Morton order, refitted each
 //!   step) finds the few that do not, whose vertices are then measured.
 //!
+//! When some pair is closer than the distance, the proof still names the patches it failed
+//! for, measured against the distance plus a margin ([`MARGIN`] of it): every vertex of the
+//! other patches ("cleared") is at least that far from every unjoined vertex, so no pass can
+//! push it until the passes' moves add up to the margin (`Resolver` then tests only the
+//! "suspect" patches' vertices).
+//!
 //! Verlet neighbour lists (a skin around each particle, rebuilt when particles have moved
 //! further than it) work the same way; the patches make a falling or swinging sheet, whose
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
@@ -37,6 +43,22 @@ use crate::Adjacency;
 
 /// Most vertices in one patch (an 8 x 8 block of a grid).
 pub const PATCH: usize = 64;
+
+/// The margin beyond the distance within which a pair makes its patches suspect, as a share
+/// of the distance.
+pub const MARGIN: f32 = 0.25;
+
+/// What [`Culling::prove`] showed of one step's positions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Proof {
+    /// No unjoined pair is closer than the distance: the passes would move nothing.
+    Clear,
+    /// Some may be, but only vertices of [`Culling::suspects`] are closer than the distance
+    /// plus [`Culling::margin`] to an unjoined vertex.
+    Local,
+    /// Nothing (a position is not finite).
+    Nothing,
+}
 
 /// Patches per subtree below which the hierarchy is searched on the calling thread.
 const PARALLEL_PATCHES: u32 = 64;
@@ -101,51 +123,138 @@ pub struct Culling {
     near_patches: Vec<u32>,
     /// The hierarchy, root first, every node before its children.
     nodes: Vec<Node>,
+    /// The last proof's suspect patches, a flag each, and their vertices.
+    suspect_patches: Vec<bool>,
+    suspects: Vec<u32>,
+    /// The last proof's margin, and the distance at which a pair was clear, m.
+    margin: f32,
+    clear_at: f32,
     /// Steps cleared, and steps whose passes had to run.
     pub cleared: u64,
     pub uncleared: u64,
+    /// Patches made suspect by [`Culling::widen`].
+    pub widened: u64,
+}
+
+/// What a check found of some pairs: whether one is within the distance plus the margin
+/// (its patches are suspect), and whether one is within the distance.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Found {
+    suspect: bool,
+    contact: bool,
+}
+
+impl Found {
+    /// What a closest unjoined distance shows.
+    fn at(closest: f32, check: &Check) -> Self {
+        Self {
+            suspect: closest < check.suspect_at,
+            contact: closest < check.clear_at,
+        }
+    }
 }
 
 /// What one step's check needs besides the culling.
 struct Check<'a> {
     positions: &'a [Vec3],
     adjacency: &'a Adjacency,
-    /// The distance plus the margin: a pair at least this far apart is clear.
+    /// The distance plus rounding's margin: a pair at least this far apart is clear.
     clear_at: f32,
+    /// `clear_at` plus [`MARGIN`]: a pair at least this far apart leaves its patches cleared.
+    suspect_at: f32,
 }
 
 impl Culling {
-    /// True if no unjoined pair of `positions` is closer than `distance` (vertices joined by
-    /// a spring of `adjacency` do not count). Builds itself on the first call, and again when
-    /// the vertex or spring count changes.
-    pub fn clear(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> bool {
-        let cleared = self.check(positions, adjacency, distance);
-        if cleared {
+    /// Whether any unjoined pair of `positions` can be closer than `distance` (vertices joined
+    /// by a spring of `adjacency` do not count), and if so, which vertices. Builds itself on
+    /// the first call, and again when the vertex or spring count changes.
+    pub fn prove(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> Proof {
+        let proof = self.check(positions, adjacency, distance);
+        if proof == Proof::Clear {
             self.cleared += 1;
         } else {
             self.uncleared += 1;
         }
-        cleared
+        proof
     }
 
-    fn check(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> bool {
+    /// The vertices of the last [`Proof::Local`]'s suspect patches.
+    pub fn suspects(&self) -> &[u32] {
+        &self.suspects
+    }
+
+    /// Whether `vertex` is one of [`Culling::suspects`].
+    pub fn is_suspect(&self, vertex: u32) -> bool {
+        self.suspect_patches[self.patch_of[vertex as usize] as usize]
+    }
+
+    /// How far, m, beyond the distance every vertex outside [`Culling::suspects`] was from
+    /// every unjoined vertex at the last [`Proof::Local`].
+    pub fn margin(&self) -> f32 {
+        self.margin
+    }
+
+    /// Adds to the suspects every patch that a vertex at `point` may be within the distance
+    /// of, for a vertex that has moved further than the margin since the last proof. (The
+    /// other patches' boxes still hold: their vertices have not moved.)
+    pub fn widen(&mut self, point: Vec3) {
+        let mut stack = vec![0u32];
+        while let Some(node) = stack.pop() {
+            let node = self.nodes[node as usize];
+            let outside = (node.low - point).max(point - node.high).max_element();
+            if outside >= self.clear_at {
+                continue;
+            }
+            match node.children {
+                Some(children) => stack.extend(children),
+                None if !self.suspect_patches[node.first as usize] => {
+                    self.suspect_patches[node.first as usize] = true;
+                    self.widened += 1;
+                    self.suspects
+                        .extend_from_slice(&self.members[self.slots(node.first)]);
+                }
+                None => {}
+            }
+        }
+    }
+
+    fn check(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> Proof {
         if positions.is_empty() {
-            return true;
+            return Proof::Clear;
         }
         if self.built_for != (positions.len(), adjacency.neighbors.len()) {
             self.build(positions, adjacency);
         }
         let Some(scale) = self.measure_patches(positions, distance) else {
-            return false;
+            return Proof::Nothing;
         };
         // Rounding: a few units in the last place of the largest coordinate in each quantity
         // the bound adds up, and a thousandth of the distance besides.
+        let clear_at = distance * 1.001 + scale * 1e-5;
+        (self.margin, self.clear_at) = (MARGIN * distance, clear_at);
         let check = Check {
             positions,
             adjacency,
-            clear_at: distance * 1.001 + scale * 1e-5,
+            clear_at,
+            suspect_at: clear_at + self.margin,
         };
-        self.near_pairs_clear(&check) && self.far_pairs_clear(&check)
+        self.suspect_patches.clear();
+        self.suspect_patches.resize(self.patches.len(), false);
+        let near = self.near_pairs(&check);
+        let far = self.far_pairs(&check);
+        if !near.contact && !far.iter().any(|&(_, found)| found.contact) {
+            return Proof::Clear;
+        }
+        for ([p, q], _) in far {
+            self.suspect_patches[p as usize] = true;
+            self.suspect_patches[q as usize] = true;
+        }
+        self.suspects.clear();
+        for (p, _) in self.suspect_patches.iter().enumerate().filter(|(_, s)| **s) {
+            self.suspects
+                .extend_from_slice(&self.members[self.slots(p as u32)]);
+        }
+        Proof::Local
     }
 
     /// Patches, their near pairs and the hierarchy, for `positions` as they are now.
@@ -278,17 +387,24 @@ impl Culling {
         Some(scale)
     }
 
-    /// Checks every near pair (all of them, so each keeps its cache up to date).
-    fn near_pairs_clear(&mut self, check: &Check) -> bool {
+    /// Checks every near pair (all of them, so each keeps its cache up to date), flagging the
+    /// patches of suspect ones.
+    fn near_pairs(&mut self, check: &Check) -> Found {
         let this = &*self;
-        let verdicts: Vec<(bool, Option<f32>)> = this
+        let verdicts: Vec<(Found, Option<f32>)> = this
             .near
             .par_iter()
-            .map(|pair| this.near_pair_clear(pair, check))
+            .map(|pair| this.near_pair(pair, check))
             .collect();
-        let mut clear = true;
-        for (pair, (pair_clear, measured)) in self.near.iter_mut().zip(verdicts) {
-            clear &= pair_clear;
+        let mut all = Found::default();
+        for (pair, (found, measured)) in self.near.iter_mut().zip(verdicts) {
+            all.contact |= found.contact;
+            if found.suspect {
+                all.suspect = true;
+                for patch in pair.patches {
+                    self.suspect_patches[patch as usize] = true;
+                }
+            }
             pair.fresh = measured.is_some();
             if let Some(gap) = measured {
                 let [p, q] = pair.patches;
@@ -305,63 +421,74 @@ impl Culling {
                 }
             }
         }
-        clear
+        all
     }
 
-    /// Whether one near pair is clear, and its gap if it had to be measured again.
-    fn near_pair_clear(&self, pair: &NearPair, check: &Check) -> (bool, Option<f32>) {
+    /// What one near pair shows, and its gap if it had to be measured again.
+    fn near_pair(&self, pair: &NearPair, check: &Check) -> (Found, Option<f32>) {
         let [p, q] = pair.patches;
         let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
         if pair.versions == [a.version, b.version] {
             let drift = (a.centre - b.centre - pair.offset).length();
-            if pair.gap - drift - a.spread - b.spread >= check.clear_at {
-                return (true, None);
+            if pair.gap - drift - a.spread - b.spread >= check.suspect_at {
+                return (Found::default(), None);
             }
         }
         let placed = |slot: usize| self.references[slot] + self.patches[slot / PATCH].centre;
         let gap = self.closest_unjoined(check.adjacency, [p, q], placed);
-        if gap - a.spread - b.spread >= check.clear_at {
-            return (true, Some(gap));
+        if gap - a.spread - b.spread >= check.suspect_at {
+            return (Found::default(), Some(gap));
         }
         let current = |slot: usize| check.positions[self.members[slot] as usize];
         let closest = self.closest_unjoined(check.adjacency, [p, q], current);
-        (closest >= check.clear_at, Some(gap))
+        (Found::at(closest, check), Some(gap))
     }
 
-    /// Whether every pair of patches that are not near is clear.
-    fn far_pairs_clear(&self, check: &Check) -> bool {
-        self.clear_within(0, check)
+    /// The suspect pairs of patches that are not near, with what each shows.
+    fn far_pairs(&self, check: &Check) -> Vec<([u32; 2], Found)> {
+        let mut found = Vec::new();
+        self.search_within(0, check, &mut found);
+        found
     }
 
-    fn clear_within(&self, node: u32, check: &Check) -> bool {
+    fn search_within(&self, node: u32, check: &Check, found: &mut Vec<([u32; 2], Found)>) {
         let node = &self.nodes[node as usize];
         let Some([a, b]) = node.children else {
-            return true;
+            return;
         };
-        let (within_a, within_b) = if node.end - node.first >= PARALLEL_PATCHES {
+        if node.end - node.first >= PARALLEL_PATCHES {
+            let mut found_b = Vec::new();
             rayon::join(
-                || self.clear_within(a, check),
-                || self.clear_within(b, check),
-            )
+                || self.search_within(a, check, found),
+                || self.search_within(b, check, &mut found_b),
+            );
+            found.append(&mut found_b);
         } else {
-            (self.clear_within(a, check), self.clear_within(b, check))
-        };
-        within_a && within_b && self.clear_between(a, b, check)
+            self.search_within(a, check, found);
+            self.search_within(b, check, found);
+        }
+        self.search_between(a, b, check, found);
     }
 
-    fn clear_between(&self, a: u32, b: u32, check: &Check) -> bool {
+    fn search_between(&self, a: u32, b: u32, check: &Check, found: &mut Vec<([u32; 2], Found)>) {
         let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
         let gaps = (na.low - nb.high).max(nb.low - na.high);
-        if gaps.max_element() >= check.clear_at {
-            return true;
+        if gaps.max_element() >= check.suspect_at {
+            return;
         }
         // Split the larger node (a single patch cannot be).
         let ([first, second], split_a) = match (na.children, nb.children) {
             (None, None) => {
                 let (p, q) = (na.first, nb.first);
-                let current = |slot: usize| check.positions[self.members[slot] as usize];
-                return self.near(p, q)
-                    || self.closest_unjoined(check.adjacency, [p, q], current) >= check.clear_at;
+                if !self.near(p, q) {
+                    let current = |slot: usize| check.positions[self.members[slot] as usize];
+                    let closest = self.closest_unjoined(check.adjacency, [p, q], current);
+                    let pair = Found::at(closest, check);
+                    if pair.suspect {
+                        found.push(([p, q], pair));
+                    }
+                }
+                return;
             }
             (Some(halves), None) => (halves, true),
             (None, Some(halves)) => (halves, false),
@@ -374,9 +501,11 @@ impl Culling {
             }
         };
         if split_a {
-            self.clear_between(first, b, check) && self.clear_between(second, b, check)
+            self.search_between(first, b, check, found);
+            self.search_between(second, b, check, found);
         } else {
-            self.clear_between(a, first, check) && self.clear_between(a, second, check)
+            self.search_between(a, first, check, found);
+            self.search_between(a, second, check, found);
         }
     }
 
@@ -642,6 +771,7 @@ mod tests {
             ("stacked", stacked_sheets, 32, 2),
             ("squeezed", squeezed_sheet, 48, 1),
         ];
+        let mut widened = 0;
         for (name, script, side, sheets) in scripts {
             let one = grid_springs(side, side);
             // Each sheet its own copy of the grid's springs.
@@ -664,29 +794,106 @@ mod tests {
                 })
                 .collect();
             let mut resolver = Resolver::default();
+            // Local passes however many vertices are suspect.
+            let mut local = Resolver {
+                local_at_most: 1,
+                ..Resolver::default()
+            };
             let mut moved_steps = 0;
+            let mut suspects = Vec::new();
             for t in 0..=steps {
                 let start = script(side, spacing, t, steps, &mut rng);
-                let (mut plain, mut culled) = (start.clone(), start);
+                let (mut plain, mut culled, mut local_only) = (start.clone(), start.clone(), start);
                 let expected = resolve(&mut plain, &weights, &adjacency, &config);
                 let moves = resolver.resolve(&mut culled, &weights, &adjacency, &config);
                 assert_eq!(moves, expected, "{name}, step {t}");
                 assert_eq!(culled, plain, "{name}, step {t}");
+                let moves = local.resolve(&mut local_only, &weights, &adjacency, &config);
+                assert_eq!(moves, expected, "{name}, step {t}, local");
+                assert_eq!(local_only, plain, "{name}, step {t}, local");
                 moved_steps += usize::from(!moves.is_empty());
+                suspects.push(resolver.culling().suspects().len());
             }
             let culling = resolver.culling();
-            // Each script must show both: steps proved clear, and steps with pairs to push.
+            // Each script must show all three: steps proved clear, steps with pairs to push,
+            // and passes over suspects alone.
             assert!(culling.cleared > 20, "{name}: cleared {}", culling.cleared);
             assert!(
                 moved_steps > 5,
                 "{name}: only {moved_steps} steps moved vertices"
             );
             assert!(culling.uncleared >= moved_steps as u64);
+            assert!(
+                local.local_passes() >= 20,
+                "{name}: {} local passes",
+                local.local_passes()
+            );
+            widened += local.culling().widened;
             eprintln!(
-                "{name}: cleared {}, not {}, moved {moved_steps}",
-                culling.cleared, culling.uncleared
+                "{name}: cleared {}, not {}, moved {moved_steps}, local passes {} (any share {}), \
+                 suspects {:?}",
+                culling.cleared,
+                culling.uncleared,
+                resolver.local_passes(),
+                local.local_passes(),
+                suspects
             );
         }
+        // Moves past the margin, which make the suspects widen.
+        assert!(widened > 0);
+    }
+
+    /// Points of a lattice 1.4 distances apart (clear, beyond the margin), some with a twin
+    /// almost on top of them, placed so that the first pass pushes the point 0.495 distances
+    /// towards a lattice neighbour: within the distance of a vertex that no proof named, which
+    /// a later grid's pass must find as the plain passes do.
+    #[test]
+    fn suspects_widen_to_where_an_earlier_pass_pushed_a_vertex() {
+        let (distance, side) = (0.01f32, 20u32);
+        let spacing = 1.4 * distance;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut points: Vec<Vec3> = (0..side * side * side)
+            .map(|v| {
+                let (i, j, k) = (v % side, (v / side) % side, v / (side * side));
+                let jitter = Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
+                Vec3::new(i as f32, j as f32, k as f32) * spacing + 0.01 * distance * jitter
+            })
+            .collect();
+        let lattice = points.len();
+        let mut twinned = Vec::new();
+        for _ in 0..300 {
+            // Inside the lattice, so the neighbour pushed towards exists.
+            let [i, j, k] = [0; 3].map(|_| rng.random_range(1..side - 1));
+            let a = (k * side + j) * side + i;
+            let mut towards = Vec3::ZERO;
+            towards[rng.random_range(0..3)] = if rng.random() { 1.0 } else { -1.0 };
+            points.push(points[a as usize] - 0.01 * distance * towards);
+            twinned.push(a);
+        }
+        let adjacency = Adjacency::from_springs(points.len(), &[]);
+        let weights = vec![1.0; points.len()];
+        let config = SelfCollision {
+            distance: f64::from(distance),
+            cell_size: 2.0 * f64::from(distance),
+            grids: 4,
+            window: 4,
+        };
+        let mut plain = points.clone();
+        let expected = resolve(&mut plain, &weights, &adjacency, &config);
+        let mut local = Resolver {
+            local_at_most: 1,
+            ..Resolver::default()
+        };
+        let moves = local.resolve(&mut points, &weights, &adjacency, &config);
+        assert_eq!(moves, expected);
+        assert_eq!(points, plain);
+        // The case this test is for: lattice points with no twin that the passes moved.
+        let bystanders = expected
+            .iter()
+            .filter(|(v, _)| (*v as usize) < lattice && !twinned.contains(v))
+            .count();
+        assert!(bystanders > 5, "{bystanders} bystanders moved");
+        assert_eq!(local.local_passes(), 4);
     }
 
     /// Every verdict of `clear` against the exact search, on a grid squeezed along x until
@@ -713,9 +920,28 @@ mod tests {
         let mut culling = Culling::default();
         let mut t = 0;
         let check = |culling: &mut Culling, positions: &[Vec3], expected: bool| {
-            let exact = exact_pairs(positions, &adjacency, f64::from(distance)).is_empty();
-            assert_eq!(exact, expected, "the test's own state");
-            assert_eq!(culling.clear(positions, &adjacency, distance), expected);
+            let close = exact_pairs(positions, &adjacency, f64::from(distance));
+            assert_eq!(close.is_empty(), expected, "the test's own state");
+            let proof = culling.prove(positions, &adjacency, distance);
+            assert_eq!(proof == Proof::Clear, expected);
+            if !expected {
+                assert_eq!(proof, Proof::Local);
+                // Every vertex within the distance and the margin of an unjoined one, and no
+                // patch without one within a little more (the rounding's margin).
+                let wide = exact_pairs(positions, &adjacency, f64::from(distance * 1.26));
+                for &(a, b) in &wide {
+                    assert!(culling.is_suspect(a) && culling.is_suspect(b), "{a} {b}");
+                }
+                for &v in culling.suspects() {
+                    let patch = culling.patch_of[v as usize];
+                    assert!(
+                        wide.iter().any(|&(a, b)| [a, b]
+                            .iter()
+                            .any(|&w| culling.patch_of[w as usize] == patch)),
+                        "suspect patch {patch} has no close pair"
+                    );
+                }
+            }
         };
         for _ in 0..4 {
             t += 1;

@@ -27,7 +27,7 @@ use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
 use binning::{Binning, Entry, key_of, vertex_of};
-pub use culling::Culling;
+pub use culling::{Culling, Proof};
 
 use crate::{Adjacency, Model};
 
@@ -144,6 +144,34 @@ pub fn joined(adjacency: &Adjacency, a: u32, b: u32) -> bool {
     adjacency.neighbors[row].contains(&b)
 }
 
+/// How grid `k` keys points.
+struct GridKeys {
+    inverse_cell: f32,
+    offset: f32,
+    bits: u32,
+}
+
+impl GridKeys {
+    fn new(vertices: usize, config: &SelfCollision, k: u32) -> Self {
+        Self {
+            inverse_cell: (1.0 / config.cell_size) as f32,
+            offset: config.grid_offset(k),
+            bits: key_bits(vertices),
+        }
+    }
+
+    fn of(&self, p: Vec3) -> u32 {
+        cell_key(cell_of(p, self.inverse_cell, self.offset), self.bits)
+    }
+
+    /// The keys of `points`' first `out.len()`, in a loop the compiler vectorises.
+    fn batch(&self, points: &[Vec3], out: &mut [u32]) {
+        for (key, &p) in out.iter_mut().zip(points) {
+            *key = self.of(p);
+        }
+    }
+}
+
 /// The vertices of grid `k` in sorted order, with their keys.
 fn sorted_for_grid<'a>(
     binning: &'a mut Binning,
@@ -151,12 +179,9 @@ fn sorted_for_grid<'a>(
     config: &SelfCollision,
     k: u32,
 ) -> &'a [Entry] {
-    let inverse_cell = (1.0 / config.cell_size) as f32;
-    let (offset, bits) = (config.grid_offset(k), key_bits(positions.len()));
-    binning.sort(positions.len(), bits, |first, out| {
-        for (key, &p) in out.iter_mut().zip(&positions[first..]) {
-            *key = cell_key(cell_of(p, inverse_cell, offset), bits);
-        }
+    let keys = GridKeys::new(positions.len(), config, k);
+    binning.sort(positions.len(), keys.bits, |first, out| {
+        keys.batch(&positions[first..], out)
     })
 }
 
@@ -222,17 +247,52 @@ pub fn resolve(
     )
 }
 
+/// Suspect vertices above this share of all (1 in 8) make a step run the full passes: sorting
+/// every vertex then costs little more than finding those that share a suspect's key.
+const LOCAL_AT_MOST: usize = 8;
+
 /// Self-collision's state kept by a solver from one step to the next: the sort's buffers, and
-/// the culling that proves, most steps, that the passes would move nothing.
-#[derive(Debug, Default)]
+/// the culling that proves, most steps, that the passes would move nothing, and on most other
+/// steps which few vertices they could move.
+#[derive(Debug)]
 pub struct Resolver {
     binning: Binning,
     culling: Culling,
+    /// The suspect vertices' keys in the current grid.
+    suspect_keys: Vec<u32>,
+    /// How far each vertex has moved this step (the sum of its moves' lengths), m, and the
+    /// vertices that have.
+    travelled: Vec<f32>,
+    movers: Vec<u32>,
+    /// Passes that tested only suspect vertices.
+    local_passes: u64,
+    /// Steps with more suspects than one vertex in this many run the full passes.
+    local_at_most: usize,
+}
+
+impl Default for Resolver {
+    fn default() -> Self {
+        Self {
+            binning: Binning::default(),
+            culling: Culling::default(),
+            suspect_keys: Vec::new(),
+            travelled: Vec::new(),
+            movers: Vec::new(),
+            local_passes: 0,
+            local_at_most: LOCAL_AT_MOST,
+        }
+    }
 }
 
 impl Resolver {
     /// [`resolve`]: the same moves in the same order. The passes are skipped when the culling
     /// shows that no unjoined pair is closer than the distance, since then none would move.
+    /// When it shows that only a few vertices' pairs can be, a pass tests only their windows:
+    /// it sorts only the vertices that share a key with one of them (every vertex's key is
+    /// computed, since hashing gives far cells the same key), which gives each such key the
+    /// same run of vertices as the full sort, and so each window the same vertices. A vertex
+    /// that has moved further than the culling's margin widens the suspects to every patch it
+    /// may have come near.
     pub fn resolve(
         &mut self,
         positions: &mut [Vec3],
@@ -240,18 +300,92 @@ impl Resolver {
         adjacency: &Adjacency,
         config: &SelfCollision,
     ) -> Vec<(u32, Vec3)> {
-        if self
+        let mut local = match self
             .culling
-            .clear(positions, adjacency, config.distance as f32)
+            .prove(positions, adjacency, config.distance as f32)
         {
-            return Vec::new();
+            Proof::Clear => return Vec::new(),
+            Proof::Local => true,
+            Proof::Nothing => false,
+        };
+        self.travelled.resize(positions.len(), 0.0);
+        let mut all_moves = Vec::new();
+        for k in 0..config.grids {
+            local &= self.culling.suspects().len() * self.local_at_most <= positions.len();
+            let moves = if local {
+                self.local_passes += 1;
+                self.local_pass(positions, weights, adjacency, config, k)
+            } else {
+                let sorted = sorted_for_grid(&mut self.binning, positions, config, k);
+                window_moves(sorted, positions, weights, adjacency, config, |_| true)
+            };
+            apply(positions, &moves);
+            if local {
+                self.widen_past_movers(positions, &moves);
+            }
+            all_moves.extend(moves);
         }
-        resolve_with(&mut self.binning, positions, weights, adjacency, config)
+        for v in self.movers.drain(..) {
+            self.travelled[v as usize] = 0.0;
+        }
+        all_moves
+    }
+
+    /// Counts each move into its vertex's travel, and widens the suspects around every vertex
+    /// that has now travelled further than the margin (a tenth of it is left for rounding).
+    fn widen_past_movers(&mut self, positions: &[Vec3], moves: &[(u32, Vec3)]) {
+        let limit = 0.9 * self.culling.margin();
+        for &(v, c) in moves {
+            let travelled = &mut self.travelled[v as usize];
+            if *travelled == 0.0 {
+                self.movers.push(v);
+            }
+            *travelled += c.length();
+            if *travelled >= limit {
+                self.culling.widen(positions[v as usize]);
+            }
+        }
+    }
+
+    /// Grid `k`'s pass over the culling's suspect vertices.
+    fn local_pass(
+        &mut self,
+        positions: &[Vec3],
+        weights: &[f32],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+        k: u32,
+    ) -> Vec<(u32, Vec3)> {
+        let keys = GridKeys::new(positions.len(), config, k);
+        self.suspect_keys.clear();
+        self.suspect_keys.extend(
+            self.culling
+                .suspects()
+                .iter()
+                .map(|&v| keys.of(positions[v as usize])),
+        );
+        self.suspect_keys.sort_unstable();
+        self.suspect_keys.dedup();
+        let sorted = self.binning.sort_among(
+            positions.len(),
+            keys.bits,
+            |first, out| keys.batch(&positions[first..], out),
+            &self.suspect_keys,
+        );
+        let culling = &self.culling;
+        window_moves(sorted, positions, weights, adjacency, config, |v| {
+            culling.is_suspect(v)
+        })
     }
 
     /// The culling, with its counts of steps cleared and not.
     pub fn culling(&self) -> &Culling {
         &self.culling
+    }
+
+    /// Passes that tested only the culling's suspect vertices.
+    pub fn local_passes(&self) -> u64 {
+        self.local_passes
     }
 }
 
@@ -263,48 +397,66 @@ fn resolve_with(
     adjacency: &Adjacency,
     config: &SelfCollision,
 ) -> Vec<(u32, Vec3)> {
-    let distance = config.distance as f32;
     let mut all_moves = Vec::new();
     for k in 0..config.grids {
         let sorted = sorted_for_grid(binning, positions, config, k);
-        let current = &*positions;
-        // Most vertices are alone in their cell: only those with a same-key neighbour in
-        // sorted order ("crowded") are looked at, and only nonzero moves are kept.
-        let moves: Vec<(u32, Vec3)> = (0..sorted.len().div_ceil(WINDOW_TASK))
-            .into_par_iter()
-            .flat_map_iter(|task| {
-                let slots = task * WINDOW_TASK..((task + 1) * WINDOW_TASK).min(sorted.len());
-                // Checked before touching the vertex: its data sits at a random address.
-                let crowded: Vec<usize> = slots.filter(|&j| !alone(j, sorted)).collect();
-                let mut moves = Vec::new();
-                for (i, &j) in crowded.iter().enumerate() {
-                    // A crowded slot's window holds only crowded slots, so fetching each one's
-                    // position ahead of time covers the whole window.
-                    if let Some(&ahead) = crowded.get(i + PREFETCH_AHEAD) {
-                        prefetch(&current[vertex_of(sorted[ahead]) as usize]);
-                    }
-                    let p = vertex_of(sorted[j]);
-                    let xp = current[p as usize];
-                    let mut correction = Vec3::ZERO;
-                    for q in window_of(j, config.window, sorted) {
-                        let d = xp - current[q as usize];
-                        correction += push(adjacency, weights, distance, [p, q], d);
-                    }
-                    // A pinned vertex does not move (its weight is read only now: most
-                    // vertices have no close pair).
-                    if correction != Vec3::ZERO && weights[p as usize] > 0.0 {
-                        moves.push((p, correction));
-                    }
-                }
-                moves
-            })
-            .collect();
-        for &(p, c) in &moves {
-            positions[p as usize] += c;
-        }
+        let moves = window_moves(sorted, positions, weights, adjacency, config, |_| true);
+        apply(positions, &moves);
         all_moves.extend(moves);
     }
     all_moves
+}
+
+/// One pass's moves, in sorted order: each vertex of `sorted` that `tested` names pushed away
+/// from the unjoined vertices of its window closer than the distance.
+fn window_moves(
+    sorted: &[Entry],
+    positions: &[Vec3],
+    weights: &[f32],
+    adjacency: &Adjacency,
+    config: &SelfCollision,
+    tested: impl Fn(u32) -> bool + Sync,
+) -> Vec<(u32, Vec3)> {
+    let distance = config.distance as f32;
+    // Most vertices are alone in their cell: only those with a same-key neighbour in sorted
+    // order ("crowded") are looked at, and only nonzero moves are kept.
+    (0..sorted.len().div_ceil(WINDOW_TASK))
+        .into_par_iter()
+        .flat_map_iter(|task| {
+            let slots = task * WINDOW_TASK..((task + 1) * WINDOW_TASK).min(sorted.len());
+            // Checked before touching the vertex: its data sits at a random address.
+            let crowded: Vec<usize> = slots
+                .filter(|&j| !alone(j, sorted) && tested(vertex_of(sorted[j])))
+                .collect();
+            let mut moves = Vec::new();
+            for (i, &j) in crowded.iter().enumerate() {
+                // A crowded slot's window holds only crowded slots, so fetching each one's
+                // position ahead of time covers most of the window.
+                if let Some(&ahead) = crowded.get(i + PREFETCH_AHEAD) {
+                    prefetch(&positions[vertex_of(sorted[ahead]) as usize]);
+                }
+                let p = vertex_of(sorted[j]);
+                let xp = positions[p as usize];
+                let mut correction = Vec3::ZERO;
+                for q in window_of(j, config.window, sorted) {
+                    let d = xp - positions[q as usize];
+                    correction += push(adjacency, weights, distance, [p, q], d);
+                }
+                // A pinned vertex does not move (its weight is read only now: most vertices
+                // have no close pair).
+                if correction != Vec3::ZERO && weights[p as usize] > 0.0 {
+                    moves.push((p, correction));
+                }
+            }
+            moves
+        })
+        .collect()
+}
+
+fn apply(positions: &mut [Vec3], moves: &[(u32, Vec3)]) {
+    for &(p, c) in moves {
+        positions[p as usize] += c;
+    }
 }
 
 /// How far `p` moves away from `q`, `d` running from `q` to `p` (zero unless they are unjoined
