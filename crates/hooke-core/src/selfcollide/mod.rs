@@ -251,6 +251,10 @@ pub fn resolve(
 /// every vertex then costs little more than finding those that share a suspect's key.
 const LOCAL_AT_MOST: usize = 8;
 
+/// Most steps run without a proof after proofs that did not help: on a cloth piled on itself
+/// every proof fails, and one costs more than the passes it would have saved.
+const MOST_UNPROVED: u32 = 64;
+
 /// Self-collision's state kept by a solver from one step to the next: the sort's buffers, and
 /// the culling that proves, most steps, that the passes would move nothing, and on most other
 /// steps which few vertices they could move.
@@ -268,6 +272,11 @@ pub struct Resolver {
     local_passes: u64,
     /// Steps with more suspects than one vertex in this many run the full passes.
     local_at_most: usize,
+    /// Steps to run without a proof, and how many the last proof that did not help gave.
+    unproved: u32,
+    backoff: u32,
+    /// Steps run without a proof.
+    unproved_steps: u64,
 }
 
 impl Default for Resolver {
@@ -280,6 +289,9 @@ impl Default for Resolver {
             movers: Vec::new(),
             local_passes: 0,
             local_at_most: LOCAL_AT_MOST,
+            unproved: 0,
+            backoff: 0,
+            unproved_steps: 0,
         }
     }
 }
@@ -300,13 +312,23 @@ impl Resolver {
         adjacency: &Adjacency,
         config: &SelfCollision,
     ) -> Vec<(u32, Vec3)> {
-        let mut local = match self
-            .culling
-            .prove(positions, adjacency, config.distance as f32)
-        {
-            Proof::Clear => return Vec::new(),
-            Proof::Local => true,
-            Proof::Nothing => false,
+        let tried = self.unproved == 0;
+        let mut local = if !tried {
+            self.unproved -= 1;
+            self.unproved_steps += 1;
+            false
+        } else {
+            match self
+                .culling
+                .prove(positions, adjacency, config.distance as f32)
+            {
+                Proof::Clear => {
+                    self.backoff = 0;
+                    return Vec::new();
+                }
+                Proof::Local => true,
+                Proof::Nothing => false,
+            }
         };
         self.travelled.resize(positions.len(), 0.0);
         let mut all_moves = Vec::new();
@@ -327,6 +349,14 @@ impl Resolver {
         }
         for v in self.movers.drain(..) {
             self.travelled[v as usize] = 0.0;
+        }
+        if tried && local {
+            self.backoff = 0;
+        } else if tried {
+            // A proof that left passes to run in full: the next ones wait, longer each time
+            // one fails again.
+            self.backoff = (2 * self.backoff).clamp(1, MOST_UNPROVED);
+            self.unproved = self.backoff;
         }
         all_moves
     }
@@ -386,6 +416,11 @@ impl Resolver {
     /// Passes that tested only the culling's suspect vertices.
     pub fn local_passes(&self) -> u64 {
         self.local_passes
+    }
+
+    /// Steps run without a proof, after proofs that did not help.
+    pub fn unproved_steps(&self) -> u64 {
+        self.unproved_steps
     }
 }
 
