@@ -91,6 +91,8 @@ struct NearPair {
     versions: [u32; 2],
     /// Whether `gap` was measured this step.
     fresh: bool,
+    /// Whether the pair was within the distance plus the margin when last checked.
+    suspect: bool,
 }
 
 /// A node of the hierarchy over patches `first..end`.
@@ -329,6 +331,7 @@ impl Culling {
                         offset: Vec3::ZERO,
                         versions: [u32::MAX; 2],
                         fresh: false,
+                        suspect: false,
                     })
             })
             .collect();
@@ -399,6 +402,7 @@ impl Culling {
         let mut all = Found::default();
         for (pair, (found, measured)) in self.near.iter_mut().zip(verdicts) {
             all.contact |= found.contact;
+            pair.suspect = found.suspect;
             if found.suspect {
                 all.suspect = true;
                 for patch in pair.patches {
@@ -434,12 +438,22 @@ impl Culling {
                 return (Found::default(), None);
             }
         }
+        let current = |slot: usize| check.positions[self.members[slot] as usize];
+        if pair.suspect {
+            // In contact last step: the placed gap would most likely fail again.
+            let closest = self.closest_unjoined(check.adjacency, [p, q], current);
+            return (Found::at(closest, check), None);
+        }
         let placed = |slot: usize| self.references[slot] + self.patches[slot / PATCH].centre;
         let gap = self.closest_unjoined(check.adjacency, [p, q], placed);
         if gap - a.spread - b.spread >= check.suspect_at {
             return (Found::default(), Some(gap));
         }
-        let current = |slot: usize| check.positions[self.members[slot] as usize];
+        // Both on their references (just renewed, say): the gap is the current distance.
+        let still = |patch: &Patch| patch.spread == 0.0 && patch.centre == Vec3::ZERO;
+        if still(a) && still(b) {
+            return (Found::at(gap, check), Some(gap));
+        }
         let closest = self.closest_unjoined(check.adjacency, [p, q], current);
         (Found::at(closest, check), Some(gap))
     }
