@@ -537,6 +537,10 @@ impl Culling {
 
     /// The smallest distance between a vertex of patch `p` and one of patch `q` that no spring
     /// joins (not a vertex and itself), with each vertex at `point(slot)`.
+    ///
+    /// `p`'s vertices are taken nearest `q`'s box first, and the search stops at the first
+    /// whose distance to the box is no less than the closest pair found: no later one can be
+    /// closer. Patches side by side on a sheet then measure a row or two of `p`, not all 64.
     fn closest_unjoined(
         &self,
         adjacency: &Adjacency,
@@ -545,13 +549,28 @@ impl Culling {
     ) -> f32 {
         // `q`'s points by axis, unused slots far away, so each row below is a plain loop.
         let mut others = [[f32::INFINITY; PATCH]; 3];
+        let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         for (k, slot) in self.slots(q).enumerate() {
             let x = point(slot);
             (others[0][k], others[1][k], others[2][k]) = (x.x, x.y, x.z);
+            (low, high) = (low.min(x), high.max(x));
         }
-        let mut closest = f32::INFINITY;
-        for slot in self.slots(p) {
+        // `p`'s slots with their squared distance to the box (on the stack: this runs
+        // thousands of times a step in contact).
+        let mut rows = [(0.0f32, 0usize, Vec3::ZERO); PATCH];
+        let slots = self.slots(p);
+        let rows = &mut rows[..slots.len()];
+        for (row, slot) in rows.iter_mut().zip(slots) {
             let x = point(slot);
+            let outside = (low - x).max(x - high).max(Vec3::ZERO);
+            *row = (outside.length_squared(), slot, x);
+        }
+        rows.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let mut closest = f32::INFINITY;
+        for &(to_box, slot, x) in &*rows {
+            if to_box >= closest {
+                break;
+            }
             let mut squared = [0.0f32; PATCH];
             for (k, s) in squared.iter_mut().enumerate() {
                 let d = [others[0][k] - x.x, others[1][k] - x.y, others[2][k] - x.z];
