@@ -90,6 +90,11 @@ impl Adjacency {
     pub fn range(&self, vertex: usize) -> std::ops::Range<usize> {
         self.offsets[vertex] as usize..self.offsets[vertex + 1] as usize
     }
+
+    /// The vertices a spring joins to `vertex`.
+    pub fn neighbors_of(&self, vertex: u32) -> &[u32] {
+        &self.neighbors[self.range(vertex as usize)]
+    }
 }
 
 /// A mass-spring system: all arrays in SI units, indexed by vertex or by spring.

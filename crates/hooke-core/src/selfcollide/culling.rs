@@ -299,10 +299,10 @@ impl Culling {
             .into_par_iter()
             .map(|p| {
                 let mut row = Vec::new();
-                for &v in &self.members[p * PATCH..((p + 1) * PATCH).min(n)] {
-                    for &w in neighbours(adjacency, v) {
+                for &v in &self.members[self.slots(p as u32)] {
+                    for &w in adjacency.neighbors_of(v) {
                         row.push(self.patch_of[w as usize]);
-                        for &u in neighbours(adjacency, w) {
+                        for &u in adjacency.neighbors_of(w) {
                             row.push(self.patch_of[u as usize]);
                         }
                     }
@@ -580,7 +580,7 @@ impl Culling {
             if p == q {
                 squared[slot % PATCH] = f32::INFINITY;
             }
-            for &w in neighbours(adjacency, v) {
+            for &w in adjacency.neighbors_of(v) {
                 if self.patch_of[w as usize] == q {
                     squared[self.slot_of[w as usize] as usize] = f32::INFINITY;
                 }
@@ -647,11 +647,6 @@ fn smaller(a: f32, b: f32) -> f32 {
     if b < a { b } else { a }
 }
 
-fn neighbours(adjacency: &Adjacency, v: u32) -> &[u32] {
-    let row = adjacency.offsets[v as usize] as usize..adjacency.offsets[v as usize + 1] as usize;
-    &adjacency.neighbors[row]
-}
-
 fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
     points
         .iter()
@@ -678,26 +673,14 @@ mod tests {
     use rand::{RngExt, SeedableRng};
 
     use super::*;
+    use crate::mesh::{GridPlane, grid};
     use crate::selfcollide::{Resolver, SelfCollision, exact_pairs, resolve};
 
-    /// The springs of a triangulated grid, `columns` vertices a row.
+    /// The springs of the generator's grid, `columns` vertices a row (the scripts place the
+    /// vertices themselves).
     fn grid_springs(columns: u32, rows: u32) -> Vec<[u32; 2]> {
-        let index = |i: u32, j: u32| i * columns + j;
-        let mut ends = Vec::new();
-        for i in 0..rows {
-            for j in 0..columns {
-                if j + 1 < columns {
-                    ends.push([index(i, j), index(i, j + 1)]);
-                }
-                if i + 1 < rows {
-                    ends.push([index(i, j), index(i + 1, j)]);
-                    if j + 1 < columns {
-                        ends.push([index(i, j), index(i + 1, j + 1)]);
-                    }
-                }
-            }
-        }
-        ends
+        let mesh = grid(columns, rows, [1.0, 1.0], GridPlane::Xz, glam::DVec3::ZERO);
+        mesh.edges().iter().map(|e| [e.a, e.b]).collect()
     }
 
     /// The sheet at step `t` of `steps`: falling, turning about the vertical, its far part

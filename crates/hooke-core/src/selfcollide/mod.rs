@@ -140,8 +140,7 @@ pub fn sort_by_key(keys: &[u32]) -> (Vec<u32>, Vec<u32>) {
 
 /// True if a spring joins `a` and `b`.
 pub fn joined(adjacency: &Adjacency, a: u32, b: u32) -> bool {
-    let row = adjacency.offsets[a as usize] as usize..adjacency.offsets[a as usize + 1] as usize;
-    adjacency.neighbors[row].contains(&b)
+    adjacency.neighbors_of(a).contains(&b)
 }
 
 /// How grid `k` keys points.
@@ -339,8 +338,7 @@ impl Resolver {
                 self.local_passes += 1;
                 self.local_pass(positions, weights, adjacency, config, k)
             } else {
-                let sorted = sorted_for_grid(&mut self.binning, positions, config, k);
-                window_moves(sorted, positions, weights, adjacency, config, |_| true)
+                full_pass(&mut self.binning, positions, weights, adjacency, config, k)
             };
             apply(positions, &moves);
             if local {
@@ -435,12 +433,24 @@ fn resolve_with(
 ) -> Vec<(u32, Vec3)> {
     let mut all_moves = Vec::new();
     for k in 0..config.grids {
-        let sorted = sorted_for_grid(binning, positions, config, k);
-        let moves = window_moves(sorted, positions, weights, adjacency, config, |_| true);
+        let moves = full_pass(binning, positions, weights, adjacency, config, k);
         apply(positions, &moves);
         all_moves.extend(moves);
     }
     all_moves
+}
+
+/// Grid `k`'s pass over every vertex: its moves, not yet applied.
+fn full_pass(
+    binning: &mut Binning,
+    positions: &[Vec3],
+    weights: &[f32],
+    adjacency: &Adjacency,
+    config: &SelfCollision,
+    k: u32,
+) -> Vec<(u32, Vec3)> {
+    let sorted = sorted_for_grid(binning, positions, config, k);
+    window_moves(sorted, positions, weights, adjacency, config, |_| true)
 }
 
 /// One pass's moves, in sorted order: each vertex of `sorted` that `tested` names pushed away
