@@ -89,8 +89,6 @@ struct NearPair {
     offset: Vec3,
     /// The patches' versions when `gap` was measured (`u32::MAX`: never).
     versions: [u32; 2],
-    /// Whether `gap` was measured this step.
-    fresh: bool,
     /// Whether the pair was within the distance plus the margin when last checked.
     suspect: bool,
 }
@@ -242,9 +240,9 @@ impl Culling {
         };
         self.suspect_patches.clear();
         self.suspect_patches.resize(self.patches.len(), false);
-        let near = self.near_pairs(&check);
+        let near_contact = self.near_pairs(&check);
         let far = self.far_pairs(&check);
-        if !near.contact && !far.iter().any(|&(_, found)| found.contact) {
+        if !near_contact && !far.iter().any(|&(_, found)| found.contact) {
             return Proof::Clear;
         }
         for ([p, q], _) in far {
@@ -330,7 +328,6 @@ impl Culling {
                         gap: 0.0,
                         offset: Vec3::ZERO,
                         versions: [u32::MAX; 2],
-                        fresh: false,
                         suspect: false,
                     })
             })
@@ -391,25 +388,23 @@ impl Culling {
     }
 
     /// Checks every near pair (all of them, so each keeps its cache up to date), flagging the
-    /// patches of suspect ones.
-    fn near_pairs(&mut self, check: &Check) -> Found {
+    /// patches of suspect ones. Returns whether any is within the distance.
+    fn near_pairs(&mut self, check: &Check) -> bool {
         let this = &*self;
         let verdicts: Vec<(Found, Option<f32>)> = this
             .near
             .par_iter()
             .map(|pair| this.near_pair(pair, check))
             .collect();
-        let mut all = Found::default();
+        let mut contact = false;
         for (pair, (found, measured)) in self.near.iter_mut().zip(verdicts) {
-            all.contact |= found.contact;
+            contact |= found.contact;
             pair.suspect = found.suspect;
             if found.suspect {
-                all.suspect = true;
                 for patch in pair.patches {
                     self.suspect_patches[patch as usize] = true;
                 }
             }
-            pair.fresh = measured.is_some();
             if let Some(gap) = measured {
                 let [p, q] = pair.patches;
                 let (a, b) = (self.patches[p as usize], self.patches[q as usize]);
@@ -425,7 +420,7 @@ impl Culling {
                 }
             }
         }
-        all
+        contact
     }
 
     /// What one near pair shows, and its gap if it had to be measured again.
