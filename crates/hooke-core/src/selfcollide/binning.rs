@@ -101,16 +101,11 @@ impl Binning {
             .zip(self.counts.par_chunks_mut(buckets))
             .enumerate()
             .for_each(|(c, (entries, counts))| {
-                let mut batch = [0u32; KEY_BATCH];
-                for (b, entries) in entries.chunks_mut(KEY_BATCH).enumerate() {
-                    let first = c * chunks.len + b * KEY_BATCH;
-                    let batch = &mut batch[..entries.len()];
-                    keys(first, batch);
-                    for ((i, entry), &k) in entries.iter_mut().enumerate().zip(&*batch) {
-                        *entry = (Entry::from(k) << 32) | (first + i) as Entry;
-                        counts[(k & mask) as usize] += 1;
-                    }
-                }
+                let start = c * chunks.len;
+                for_each_key(start..start + entries.len(), &keys, |v, k| {
+                    entries[v - start] = (Entry::from(k) << 32) | v as Entry;
+                    counts[(k & mask) as usize] += 1;
+                });
             });
         for pass in 0..passes {
             let shift = pass * width;
@@ -154,20 +149,15 @@ impl Binning {
             .into_par_iter()
             .map(|c| {
                 let mut found = Vec::new();
-                let mut batch = [0u32; KEY_BATCH];
-                let end = ((c + 1) * chunks.len).min(n);
-                for first in (c * chunks.len..end).step_by(KEY_BATCH) {
-                    let batch = &mut batch[..KEY_BATCH.min(end - first)];
-                    keys(first, batch);
-                    for (i, &key) in batch.iter().enumerate() {
-                        let bit = key & filter_mask;
-                        if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
-                            && wanted.binary_search(&key).is_ok()
-                        {
-                            found.push((Entry::from(key) << 32) | (first + i) as Entry);
-                        }
+                let vertices = c * chunks.len..((c + 1) * chunks.len).min(n);
+                for_each_key(vertices, &keys, |v, key| {
+                    let bit = key & filter_mask;
+                    if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
+                        && wanted.binary_search(&key).is_ok()
+                    {
+                        found.push((Entry::from(key) << 32) | v as Entry);
                     }
-                }
+                });
                 found
             })
             .collect();
@@ -187,6 +177,24 @@ impl Binning {
         self.sort(keys.len(), bits, |first, out| {
             out.copy_from_slice(&keys[first..first + out.len()]);
         })
+    }
+}
+
+/// Calls `each(vertex, key)` for `vertices` in order, their keys written by `keys` a batch at
+/// a time (see [`KEY_BATCH`]).
+#[inline(always)]
+fn for_each_key(
+    vertices: std::ops::Range<usize>,
+    keys: &impl Fn(usize, &mut [u32]),
+    mut each: impl FnMut(usize, u32),
+) {
+    let mut batch = [0u32; KEY_BATCH];
+    for first in vertices.clone().step_by(KEY_BATCH) {
+        let batch = &mut batch[..KEY_BATCH.min(vertices.end - first)];
+        keys(first, batch);
+        for (i, &key) in batch.iter().enumerate() {
+            each(first + i, key);
+        }
     }
 }
 
