@@ -23,6 +23,8 @@ use crate::layout::{LANES, Slices};
 use crate::simd::Avx2;
 pub use crate::simd::{Block, Point};
 use crate::simd::{Portable, Simd};
+pub use crate::view::Positions;
+use crate::view::{Floats, Points};
 
 /// Spring stiffness per entry, or one value for all. A uniform stiffness is one row read with
 /// stride 0: branch-free in the kernels, and it saves a memory stream.
@@ -351,7 +353,7 @@ macro_rules! dispatch {
 #[inline(always)]
 fn load_row<S: Simd>(
     simd: S,
-    values: &[f32],
+    values: Floats<'_>,
     rows: &IndexRows,
     row: usize,
     mask: u32,
@@ -359,11 +361,7 @@ fn load_row<S: Simd>(
 ) -> S::V {
     let head = rows.head[row];
     if rows.contiguous[row] {
-        let first = (head & mask) as usize;
-        let block: &Block = values[first..first + LANES]
-            .try_into()
-            .expect("invariant: a slice of LANES floats converts to a block");
-        let value = simd.load(block);
+        let value = simd.load(values.run((head & mask) as usize));
         if signed {
             simd.flip_sign(value, &[head; LANES])
         } else {
@@ -373,7 +371,7 @@ fn load_row<S: Simd>(
         let index = &rows.gathered[head as usize];
         // SAFETY: `CpuSolver::new` builds every index (masked) below `values.len()`: vertex
         // indices below `padded_len`, spring slots below the force buffer's length.
-        let value = unsafe { simd.gather(values, index, mask) };
+        let value = unsafe { values.gather(simd, index, mask) };
         if signed {
             simd.flip_sign(value, index)
         } else {
@@ -382,29 +380,32 @@ fn load_row<S: Simd>(
     }
 }
 
-/// The positions of the 8 vertices of `row`: a contiguous row loads from the axes; another
-/// from `points` when given (one 16-byte load per lane), else lane by lane from each axis.
+/// The positions of the 8 vertices of `row`: a contiguous row loads from the axes; another,
+/// with `POINTS`, from the points (one 16-byte load per lane), else lane by lane from each
+/// axis. (`POINTS` is a constant so that the structured meshes' loop never looks at points.)
 #[inline(always)]
-fn load_positions_row<S: Simd>(
+fn load_positions_row<S: Simd, const POINTS: bool>(
     simd: S,
-    axes: [&[f32]; 3],
-    points: Option<&[Point]>,
+    positions: Positions<'_>,
     rows: &IndexRows,
     row: usize,
 ) -> [S::V; 3] {
-    match points {
-        Some(points) if !rows.contiguous[row] => {
+    match positions.points {
+        Some(points) if POINTS && !rows.contiguous[row] => {
             let index = &rows.gathered[rows.head[row] as usize];
             // SAFETY: `CpuSolver::new` builds every vertex index below `padded_len`, the length
-            // of `points`.
-            unsafe { simd.gather_points(points, index, u32::MAX) }
+            // of the points.
+            unsafe { points.gather(simd, index, u32::MAX) }
         }
         // Written out per axis: closures would not inline into the AVX2 functions.
-        _ => [
-            load_row(simd, axes[0], rows, row, u32::MAX, false),
-            load_row(simd, axes[1], rows, row, u32::MAX, false),
-            load_row(simd, axes[2], rows, row, u32::MAX, false),
-        ],
+        _ => {
+            let [xs, ys, zs] = positions.axes;
+            [
+                load_row(simd, xs, rows, row, u32::MAX, false),
+                load_row(simd, ys, rows, row, u32::MAX, false),
+                load_row(simd, zs, rows, row, u32::MAX, false),
+            ]
+        }
     }
 }
 
@@ -434,23 +435,20 @@ fn spring_force_rows<S: Simd>(
 }
 
 #[inline(always)]
-fn gather_slice<S: Simd>(
+fn gather_slice<S: Simd, const POINTS: bool>(
     simd: S,
     table: &GatherTable,
-    positions: &Soa,
-    points: Option<&[Point]>,
+    positions: Positions<'_>,
     slice: usize,
 ) -> [S::V; 3] {
-    let [xs, ys, zs] = positions.axes();
-    let axes = [xs.as_flattened(), ys.as_flattened(), zs.as_flattened()];
     let own = [
-        simd.load(&positions.axis(0)[slice]),
-        simd.load(&positions.axis(1)[slice]),
-        simd.load(&positions.axis(2)[slice]),
+        simd.load(positions.block(0, slice)),
+        simd.load(positions.block(1, slice)),
+        simd.load(positions.block(2, slice)),
     ];
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
-        let neighbor = load_positions_row(simd, axes, points, &table.neighbor, row);
+        let neighbor = load_positions_row::<S, POINTS>(simd, positions, &table.neighbor, row);
         let stiffness = simd.load(table.stiffness.row(row));
         let f = spring_force_rows(
             simd,
@@ -477,8 +475,9 @@ fn accumulate_slice<S: Simd>(
     spring_forces: &Soa,
     slice: usize,
 ) -> [S::V; 3] {
-    let [xs, ys, zs] = spring_forces.axes();
-    let (xs, ys, zs) = (xs.as_flattened(), ys.as_flattened(), zs.as_flattened());
+    let [xs, ys, zs] = spring_forces
+        .axes()
+        .map(|axis| Floats::new(axis.as_flattened()));
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
         let fx = load_row(simd, xs, &table.entry, row, !B_END, true);
@@ -498,7 +497,7 @@ fn accumulate_slice<S: Simd>(
 fn accumulate_points_slice<S: Simd>(
     simd: S,
     table: &IncidenceTable,
-    points: &[Point],
+    points: Points<'_>,
     slice: usize,
 ) -> [S::V; 3] {
     let mut force = [simd.splat(0.0); 3];
@@ -506,7 +505,7 @@ fn accumulate_points_slice<S: Simd>(
         let index = table.entry.row(row);
         // SAFETY: `CpuSolver::new` builds every spring slot (masked) below the buffer's
         // length: the springs' rows and one row of zeros for padding.
-        let [fx, fy, fz] = unsafe { simd.gather_points(points, &index, !B_END) };
+        let [fx, fy, fz] = unsafe { points.gather(simd, &index, !B_END) };
         force = [
             simd.add(force[0], simd.flip_sign(fx, &index)),
             simd.add(force[1], simd.flip_sign(fy, &index)),
@@ -541,7 +540,7 @@ struct SliceOut<'a> {
 fn integrate_slice<S: Simd>(
     simd: S,
     integrator: &Integrator,
-    current: &Soa,
+    current: Positions<'_>,
     slice: usize,
     force: [S::V; 3],
     out: SliceOut<'_>,
@@ -553,7 +552,7 @@ fn integrate_slice<S: Simd>(
     let mut probe = zero;
     let mut news = [zero; 3];
     for (axis, (next, delta)) in out.next.into_iter().zip(out.delta).enumerate() {
-        let x = simd.load(&current.axis(axis)[slice]);
+        let x = simd.load(current.block(axis, slice));
         let moved = simd.add(
             simd.add(
                 simd.mul(simd.load(delta), velocity_scale),
@@ -627,18 +626,16 @@ trait SliceForces {
     fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3];
 }
 
-/// Gather: each slice sums its springs; with `POINTS`, gathered rows read `points`.
+/// Gather: each slice sums its springs; with `POINTS`, gathered rows read the points.
 struct Gathered<'a, const POINTS: bool> {
     table: &'a GatherTable,
-    current: &'a Soa,
-    points: &'a [Point],
+    current: Positions<'a>,
 }
 
 impl<const POINTS: bool> SliceForces for Gathered<'_, POINTS> {
     #[inline(always)]
     fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
-        let points = POINTS.then_some(self.points);
-        gather_slice(simd, self.table, self.current, points, slice)
+        gather_slice::<S, POINTS>(simd, self.table, self.current, slice)
     }
 }
 
@@ -658,7 +655,7 @@ impl SliceForces for Accumulated<'_> {
 /// [`Accumulated`] from one point per spring slot.
 struct AccumulatedPoints<'a> {
     table: &'a IncidenceTable,
-    spring_forces: &'a [Point],
+    spring_forces: Points<'a>,
 }
 
 impl SliceForces for AccumulatedPoints<'_> {
@@ -689,7 +686,7 @@ impl SliceForces for Summed<'_> {
 fn integrate_chunk<S: Simd>(
     simd: S,
     integrator: &Integrator,
-    current: &Soa,
+    current: Positions<'_>,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
     forces: &impl SliceForces,
@@ -721,40 +718,28 @@ fn gather_and_integrate_with<S: Simd>(
     simd: S,
     table: &GatherTable,
     integrator: &Integrator,
-    current: &Soa,
-    points: Option<&[Point]>,
+    current: Positions<'_>,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
     // Two copies of the loop, one that never looks at points: the structured meshes' rows.
-    match points {
-        None => {
-            let forces = Gathered::<false> {
-                table,
-                current,
-                points: &[],
-            };
-            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
-        }
-        Some(points) => {
-            let forces = Gathered::<true> {
-                table,
-                current,
-                points,
-            };
-            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
-        }
+    if current.points.is_some() {
+        let forces = Gathered::<true> { table, current };
+        integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+    } else {
+        let forces = Gathered::<false> { table, current };
+        integrate_chunk(simd, integrator, current, extra, chunk, &forces)
     }
 }
 
 dispatch! {
     /// Gather (PCA), fused: spring forces of each slice's vertices, then Verlet, in one pass.
-    /// Returns false if a new position in the chunk is not finite.
+    /// Gathered rows read `current`'s points when it has them. Returns false if a new
+    /// position in the chunk is not finite.
     pub fn gather_and_integrate(
         table: &GatherTable,
         integrator: &Integrator,
-        current: &Soa,
-        points: Option<&[Point]>,
+        current: Positions<'_>,
         extra: Option<&Soa>,
         chunk: VertexChunk<'_>,
     ) -> bool => gather_and_integrate_with
@@ -770,6 +755,7 @@ fn accumulate_and_integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
+    let current = Positions::new(current, None);
     match spring_forces {
         SpringForces::Axes(spring_forces) => {
             let forces = Accumulated {
@@ -781,7 +767,7 @@ fn accumulate_and_integrate_with<S: Simd>(
         SpringForces::Points(rows) => {
             let forces = AccumulatedPoints {
                 table,
-                spring_forces: rows.as_flattened(),
+                spring_forces: Points::new(rows.as_flattened()),
             };
             integrate_chunk(simd, integrator, current, extra, chunk, &forces)
         }
@@ -804,15 +790,14 @@ dispatch! {
 
 /// The forces of spring row `row` on its `a` ends.
 #[inline(always)]
-fn spring_row_force<S: Simd>(
+fn spring_row_force<S: Simd, const POINTS: bool>(
     simd: S,
     springs: &SpringTable,
-    axes: [&[f32]; 3],
-    points: Option<&[Point]>,
+    positions: Positions<'_>,
     row: usize,
 ) -> [S::V; 3] {
-    let a = load_positions_row(simd, axes, points, &springs.a, row);
-    let b = load_positions_row(simd, axes, points, &springs.b, row);
+    let a = load_positions_row::<S, POINTS>(simd, positions, &springs.a, row);
+    let b = load_positions_row::<S, POINTS>(simd, positions, &springs.b, row);
     let stiffness = simd.load(springs.stiffness.row(row));
     spring_force_rows(simd, a, b, stiffness, springs.rest_length.load(simd, row))
 }
@@ -826,24 +811,22 @@ fn spring_forces_with<S: Simd>(
     first_row: usize,
     out: ForceRows<'_>,
 ) {
+    let positions = Positions::new(current, points);
     // Two copies of the loop, one that never looks at points: the structured meshes' rows.
     match points {
-        None => spring_rows(simd, springs, current, None, first_row, out),
-        Some(points) => spring_rows(simd, springs, current, Some(points), first_row, out),
+        None => spring_rows::<S, false>(simd, springs, positions, first_row, out),
+        Some(_) => spring_rows::<S, true>(simd, springs, positions, first_row, out),
     }
 }
 
 #[inline(always)]
-fn spring_rows<S: Simd>(
+fn spring_rows<S: Simd, const POINTS: bool>(
     simd: S,
     springs: &SpringTable,
-    current: &Soa,
-    points: Option<&[Point]>,
+    positions: Positions<'_>,
     first_row: usize,
     out: ForceRows<'_>,
 ) {
-    let [xs, ys, zs] = current.axes();
-    let axes = [xs.as_flattened(), ys.as_flattened(), zs.as_flattened()];
     // Calls, not a closure: closures would not inline into the AVX2 functions.
     match out {
         ForceRows::Axes([ox, oy, oz]) => {
@@ -853,7 +836,8 @@ fn spring_rows<S: Simd>(
                 .zip(oz.iter_mut())
                 .enumerate()
             {
-                let [f0, f1, f2] = spring_row_force(simd, springs, axes, points, first_row + k);
+                let [f0, f1, f2] =
+                    spring_row_force::<S, POINTS>(simd, springs, positions, first_row + k);
                 simd.store(f0, fx);
                 simd.store(f1, fy);
                 simd.store(f2, fz);
@@ -861,7 +845,7 @@ fn spring_rows<S: Simd>(
         }
         ForceRows::Points(rows) => {
             for (k, out) in rows.iter_mut().enumerate() {
-                let force = spring_row_force(simd, springs, axes, points, first_row + k);
+                let force = spring_row_force::<S, POINTS>(simd, springs, positions, first_row + k);
                 simd.store_points(force, out);
             }
         }
@@ -905,23 +889,10 @@ fn gather_forces_with<S: Simd>(
     points: Option<&[Point]>,
     chunk: ForceChunk<'_>,
 ) {
+    let current = Positions::new(current, points);
     match points {
-        None => {
-            let forces = Gathered::<false> {
-                table,
-                current,
-                points: &[],
-            };
-            store_forces(simd, chunk, &forces);
-        }
-        Some(points) => {
-            let forces = Gathered::<true> {
-                table,
-                current,
-                points,
-            };
-            store_forces(simd, chunk, &forces);
-        }
+        None => store_forces(simd, chunk, &Gathered::<false> { table, current }),
+        Some(_) => store_forces(simd, chunk, &Gathered::<true> { table, current }),
     }
 }
 
@@ -953,7 +924,7 @@ fn accumulate_forces_with<S: Simd>(
         SpringForces::Points(rows) => {
             let forces = AccumulatedPoints {
                 table,
-                spring_forces: rows.as_flattened(),
+                spring_forces: Points::new(rows.as_flattened()),
             };
             store_forces(simd, chunk, &forces);
         }
@@ -975,6 +946,7 @@ fn integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
+    let current = Positions::new(current, None);
     integrate_chunk(simd, integrator, current, extra, chunk, &Summed(forces))
 }
 

@@ -18,7 +18,9 @@ pub mod kernels;
 mod lanes;
 pub mod layout;
 pub mod simd;
+mod sweep;
 mod tables;
+mod view;
 
 use std::time::Instant;
 
@@ -41,6 +43,7 @@ use kernels::{
 use lanes::Lanes;
 use layout::{LANES, Numbering, VertexOrder};
 use tables::{build_topology, into_blocks, stiffness_entries};
+use view::Positions;
 
 /// Which of the paper's data structures computes the spring forces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -182,6 +185,8 @@ pub struct CpuSolver {
     tear_positions: Vec<Vec3>,
     /// Where each spring's stiffness sits in `topology` (made when a spring first tears).
     stiffness_entries: Option<Vec<[u32; 2]>>,
+    /// How several steps run in one sweep over memory, when they may (see [`sweep`]).
+    sweep: Option<sweep::Sweep>,
     steps_taken: u64,
 }
 
@@ -234,11 +239,13 @@ impl CpuSolver {
             tears: Tears::new(model),
             tear_positions: Vec::new(),
             stiffness_entries: None,
+            sweep: None,
             model: model.clone(),
             steps_taken: 0,
         };
         solver.set_integrator();
         solver.set_points();
+        solver.plan_sweep();
         // The model's dampers act before any control is given.
         solver.set_external_forces();
         solver.write_state(&State::at_rest(model.initial_positions.clone()));
@@ -319,6 +326,11 @@ impl CpuSolver {
             points.resize(rows, [[0.0; 4]; LANES]);
         }
         self.points_fresh = false;
+    }
+
+    fn plan_sweep(&mut self) {
+        let (slices, threads) = (self.numbering.slice_count(), self.threads());
+        self.sweep = sweep::Sweep::plan(&self.topology, slices, threads);
     }
 
     /// Whether every vertex stays where the integration puts it (no colliders, handles or
@@ -468,6 +480,7 @@ impl CpuSolver {
             build_topology(&torn, &self.numbering, self.options.method, scale)
         };
         self.set_points();
+        self.plan_sweep();
     }
 
     /// Forces and integration in one pass per vertex chunk; true if every result is finite.
@@ -475,14 +488,18 @@ impl CpuSolver {
         let isa = self.options.instruction_set;
         let points = self.refresh_points().then_some(self.points.as_flattened());
         let writes_points = self.writes_points();
-        let next_points = writes_points.then_some(&mut self.next_points);
+        let next_points = writes_points.then_some(self.next_points.as_mut_slice());
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let (next, delta) = (&mut self.next, &mut self.delta);
+        let all = 0..self.numbering.slice_count();
         let all_finite = match &mut self.topology {
-            Topology::Gather(table) => for_each_vertex_chunk(next, delta, next_points, |chunk| {
-                kernels::gather_and_integrate(isa, table, integrator, current, points, extra, chunk)
-            }),
+            Topology::Gather(table) => {
+                let current = Positions::new(current, points);
+                for_each_vertex_chunk(all, next, delta, next_points, |chunk| {
+                    kernels::gather_and_integrate(isa, table, integrator, current, extra, chunk)
+                })
+            }
             Topology::Scatter {
                 springs,
                 incidence,
@@ -490,7 +507,7 @@ impl CpuSolver {
             } => {
                 compute_spring_forces(isa, springs, current, points, spring_forces);
                 let spring_forces = &*spring_forces;
-                for_each_vertex_chunk(next, delta, next_points, |chunk| {
+                for_each_vertex_chunk(all, next, delta, next_points, |chunk| {
                     kernels::accumulate_and_integrate(
                         isa,
                         incidence,
@@ -516,7 +533,7 @@ impl CpuSolver {
         let start = Instant::now();
         let points = self.refresh_points().then_some(self.points.as_flattened());
         let writes_points = self.writes_points();
-        let next_points = writes_points.then_some(&mut self.next_points);
+        let next_points = writes_points.then_some(self.next_points.as_mut_slice());
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let phase_forces = &mut self.phase_forces;
@@ -545,7 +562,8 @@ impl CpuSolver {
         let start = Instant::now();
         let phase_forces = &*phase_forces;
         let (next, delta) = (&mut self.next, &mut self.delta);
-        let all_finite = for_each_vertex_chunk(next, delta, next_points, |chunk| {
+        let all = 0..self.numbering.slice_count();
+        let all_finite = for_each_vertex_chunk(all, next, delta, next_points, |chunk| {
             kernels::integrate(isa, integrator, current, phase_forces, extra, chunk)
         });
         times.integration = start.elapsed();
@@ -652,6 +670,12 @@ impl CpuSolver {
     fn finish_step(&mut self, all_finite: bool) -> Result<(), SimError> {
         std::mem::swap(&mut self.current, &mut self.next);
         self.steps_taken += 1;
+        self.check_finite(all_finite)
+    }
+
+    /// The error for a step whose results were not all finite, naming the first vertex whose
+    /// current position is not.
+    fn check_finite(&self, all_finite: bool) -> Result<(), SimError> {
         if all_finite {
             return Ok(());
         }
@@ -668,16 +692,18 @@ impl CpuSolver {
     }
 }
 
-/// Runs `kernel` over chunks of [`SLICES_PER_TASK`] slices of `next` and `delta` in parallel;
-/// true if every chunk reported finite results.
+/// Runs `kernel` over chunks of [`SLICES_PER_TASK`] slices of `next` and `delta` in parallel,
+/// over the slices in `slices` (`next_points` holds only theirs); true if every chunk
+/// reported finite results.
 fn for_each_vertex_chunk(
+    slices: std::ops::Range<usize>,
     next: &mut Soa,
     delta: &mut Soa,
-    next_points: Option<&mut Vec<[Point; LANES]>>,
+    next_points: Option<&mut [[Point; LANES]]>,
     kernel: impl Fn(VertexChunk<'_>) -> bool + Sync,
 ) -> bool {
-    let [nx, ny, nz] = next.axes_mut();
-    let [dx, dy, dz] = delta.axes_mut();
+    let [nx, ny, nz] = next.axes_mut().map(|axis| &mut axis[slices.clone()]);
+    let [dx, dy, dz] = delta.axes_mut().map(|axis| &mut axis[slices.clone()]);
     // Each task's rows of points, or none for every task.
     let points = match next_points {
         Some(points) => Either::Left(points.par_chunks_mut(SLICES_PER_TASK).map(Some)),
@@ -698,7 +724,7 @@ fn for_each_vertex_chunk(
         .enumerate()
         .map(|(task, ((((nx, ny), nz), ((dx, dy), dz)), points))| {
             kernel(VertexChunk {
-                first_slice: task * SLICES_PER_TASK,
+                first_slice: slices.start + task * SLICES_PER_TASK,
                 next: [nx, ny, nz],
                 delta: [dx, dy, dz],
                 points,
@@ -805,8 +831,16 @@ impl Solver for CpuSolver {
     fn step(&mut self, steps: u32) -> Result<(), SimError> {
         let pool = std::sync::Arc::clone(&self.pool);
         pool.install(|| {
-            for _ in 0..steps {
-                self.step_once(None)?;
+            let mut left = steps as usize;
+            while left > 0 {
+                let depth = left.min(sweep::DEPTH);
+                if depth >= 2 && self.can_sweep() {
+                    self.step_sweep(depth)?;
+                    left -= depth;
+                } else {
+                    self.step_once(None)?;
+                    left -= 1;
+                }
             }
             Ok(())
         })

@@ -18,18 +18,20 @@ pub trait Simd: Copy {
     fn splat(self, value: f32) -> Self::V;
     fn load(self, block: &Block) -> Self::V;
     fn store(self, value: Self::V, block: &mut Block);
-    /// `values[index[lane] & mask]` per lane.
+    /// `values[index[lane] & mask]` per lane. A pointer, not a slice: the caller may let other
+    /// threads write other floats of the same buffer meanwhile (see `crate::view`).
     ///
     /// # Safety
-    /// Every masked index must be below `values.len()`.
-    unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> Self::V;
+    /// Every masked index must be below the number of readable floats at `values`, and no
+    /// thread may write the floats read during the call.
+    unsafe fn gather(self, values: *const f32, index: &[u32; LANES], mask: u32) -> Self::V;
     /// `points[index[lane] & mask]` per lane, as its x, y and z (the fourth word is ignored).
     ///
     /// # Safety
-    /// Every masked index must be below `points.len()`.
+    /// As for [`Simd::gather`], in points.
     unsafe fn gather_points(
         self,
-        points: &[Point],
+        points: *const Point,
         index: &[u32; LANES],
         mask: u32,
     ) -> [Self::V; 3];
@@ -71,14 +73,19 @@ impl Simd for Portable {
         *block = value;
     }
     #[inline(always)]
-    unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> Block {
-        // SAFETY: the caller guarantees every masked index is in bounds.
-        std::array::from_fn(|lane| unsafe { *values.get_unchecked((index[lane] & mask) as usize) })
+    unsafe fn gather(self, values: *const f32, index: &[u32; LANES], mask: u32) -> Block {
+        // SAFETY: the caller guarantees every masked index is in bounds and not written.
+        std::array::from_fn(|lane| unsafe { *values.add((index[lane] & mask) as usize) })
     }
     #[inline(always)]
-    unsafe fn gather_points(self, points: &[Point], index: &[u32; LANES], mask: u32) -> [Block; 3] {
-        // SAFETY: the caller guarantees every masked index is in bounds.
-        let at = |lane: usize| unsafe { points.get_unchecked((index[lane] & mask) as usize) };
+    unsafe fn gather_points(
+        self,
+        points: *const Point,
+        index: &[u32; LANES],
+        mask: u32,
+    ) -> [Block; 3] {
+        // SAFETY: the caller guarantees every masked index is in bounds and not written.
+        let at = |lane: usize| unsafe { *points.add((index[lane] & mask) as usize) };
         std::array::from_fn(|axis| std::array::from_fn(|lane| at(lane)[axis]))
     }
     #[inline(always)]
@@ -197,25 +204,25 @@ mod avx2 {
             unsafe { _mm256_storeu_ps(block.as_mut_ptr(), value) }
         }
         #[inline(always)]
-        unsafe fn gather(self, values: &[f32], index: &[u32; LANES], mask: u32) -> __m256 {
+        unsafe fn gather(self, values: *const f32, index: &[u32; LANES], mask: u32) -> __m256 {
             // SAFETY: the caller guarantees every masked index is in bounds; masked indices are
             // below 2^31, so they are valid i32 offsets.
             unsafe {
                 if self.load_by_lane {
-                    let at = |lane: usize| *values.get_unchecked((index[lane] & mask) as usize);
+                    let at = |lane: usize| *values.add((index[lane] & mask) as usize);
                     return _mm256_setr_ps(at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7));
                 }
                 let index = _mm256_and_si256(
                     _mm256_loadu_si256(index.as_ptr().cast()),
                     _mm256_set1_epi32(mask as i32),
                 );
-                _mm256_i32gather_ps::<4>(values.as_ptr(), index)
+                _mm256_i32gather_ps::<4>(values, index)
             }
         }
         #[inline(always)]
         unsafe fn gather_points(
             self,
-            points: &[Point],
+            points: *const Point,
             index: &[u32; LANES],
             mask: u32,
         ) -> [__m256; 3] {
@@ -230,13 +237,9 @@ mod avx2 {
                     ($low:literal, $high:literal) => {
                         _mm256_insertf128_ps::<1>(
                             _mm256_castps128_ps256(_mm_loadu_ps(
-                                points.get_unchecked((index[$low] & mask) as usize).as_ptr(),
+                                points.add((index[$low] & mask) as usize).cast(),
                             )),
-                            _mm_loadu_ps(
-                                points
-                                    .get_unchecked((index[$high] & mask) as usize)
-                                    .as_ptr(),
-                            ),
+                            _mm_loadu_ps(points.add((index[$high] & mask) as usize).cast()),
                         )
                     };
                 }
@@ -362,8 +365,8 @@ mod tests {
         // SAFETY: every masked index is below 40.
         let (portable, vector) = unsafe {
             (
-                Portable.gather_points(&points, &index, !0x8000_0000),
-                avx2.gather_points(&points, &index, !0x8000_0000),
+                Portable.gather_points(points.as_ptr(), &index, !0x8000_0000),
+                avx2.gather_points(points.as_ptr(), &index, !0x8000_0000),
             )
         };
         for (p, v) in portable.into_iter().zip(vector) {
@@ -383,8 +386,8 @@ mod tests {
         // SAFETY: every masked index is below 40.
         unsafe {
             check(
-                Portable.gather(&values, &index, !0x8000_0000),
-                avx2.gather(&values, &index, !0x8000_0000),
+                Portable.gather(values.as_ptr(), &index, !0x8000_0000),
+                avx2.gather(values.as_ptr(), &index, !0x8000_0000),
             )
         };
     }

@@ -1,0 +1,349 @@
+//! Several steps per sweep over memory (temporal blocking), for meshes larger than the caches.
+//!
+//! A gather step reads every vertex's position, delta and integration constants and writes its
+//! new position and delta. On a mesh whose working set leaves the caches, each step streams all
+//! of that from memory, and the threads share the stream: the 1024^2 grid took 5.9x the 512^2
+//! step for 4x the springs. A sweep instead advances a few slices at a time by up to
+//! [`DEPTH`] steps while they are still in the cache.
+//!
+//! Step `j` of a sweep (1-based) reads `x(t + (j-1) dt)` and writes `x(t + j dt)` over
+//! `x(t + (j-2) dt)`: odd steps from `current` into `next`, even steps back, the two buffers a
+//! single step uses. A vertex's step `j` needs step `j-1` done within the mesh's *reach* `r`
+//! (the furthest, in slices, any neighbour lies from a vertex), and may overwrite
+//! `x(t + (j-2) dt)` only once no step `j-1` within `r` still reads it.
+//!
+//! The slices are cut into one band per thread. Within its band `[s, e)` a thread runs step 1
+//! over the next few slices, then every later step as far as those dependencies allow
+//! (step `j` trails step `j-1` by `r`), and so on to the band's end; step `j` covers
+//! `[s + (j-1) r, e - (j-1) r)`. The only positions a thread reads outside its band are the
+//! `x(t)` within `r` of its ends, which the neighbouring band overwrites in none of its steps
+//! (its step 2 starts `r` in). When every band is done, one task per band boundary `b` runs
+//! steps `2..=DEPTH` over `[b - (j-1) r, b + (j-1) r)` in order; boundaries lie at least
+//! `2 DEPTH r` apart, so those tasks touch disjoint slices.
+//!
+//! Every vertex does the arithmetic of a single step on the same inputs, so the states are
+//! bit-identical (tested). Only steps where nothing acts between the spring forces and the next
+//! step may sweep: gather, no tearing, no per-step external forces (wind, drag, bending
+//! damping), no colliders, handles or self-collision. Any other step runs alone.
+
+use std::ops::Range;
+
+use hooke_core::SimError;
+use rayon::prelude::*;
+
+use crate::kernels::{self, Block, GatherTable, Point, VertexChunk};
+use crate::layout::LANES;
+use crate::view::Positions;
+use crate::{CpuSolver, Topology};
+
+/// Steps per sweep at most. Four halve what two stream from memory again; more gained nothing
+/// measurable on the 1024^2 and 2048^2 grids (see the README).
+pub(crate) const DEPTH: usize = 4;
+
+/// Slices that step 1 advances by at a time: 2,048 vertices, so the slices every step of the
+/// sweep is working on (`DEPTH` reaches behind) stay in a core's L2 cache on a grid up to
+/// 2048^2, and each kernel call has thousands of vertices to amortise it.
+const ADVANCE: usize = 256;
+
+/// Slices a mesh needs at least for a sweep to pay: 131,072 vertices. Below that, a single
+/// step's working set stays in the caches anyway.
+const MIN_SLICES: usize = 16_384;
+
+/// How a mesh sweeps: the reach of its springs and the bands its slices are cut into.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Sweep {
+    /// The furthest, in slices, that any vertex has a neighbour.
+    reach: usize,
+    bands: usize,
+}
+
+impl Sweep {
+    /// How `topology` over `slices` slices sweeps with `threads` threads, or `None` where it
+    /// would not pay or cannot: too small a mesh, neighbours too far apart for bands at least
+    /// `4 DEPTH` reaches wide, or scatter, which computes its forces in a pass of its own.
+    pub(crate) fn plan(topology: &Topology, slices: usize, threads: usize) -> Option<Self> {
+        let Topology::Gather(table) = topology else {
+            return None;
+        };
+        if slices < MIN_SLICES {
+            return None;
+        }
+        Self::of(table, slices, threads)
+    }
+
+    /// [`Sweep::plan`] on a mesh of any size.
+    fn of(table: &GatherTable, slices: usize, threads: usize) -> Option<Self> {
+        let reach = reach(table);
+        let bands = threads.min(slices / (4 * DEPTH * reach.max(1)));
+        (bands > 0).then_some(Self { reach, bands })
+    }
+
+    fn band(&self, k: usize, slices: usize) -> Range<usize> {
+        k * slices / self.bands..(k + 1) * slices / self.bands
+    }
+}
+
+/// The furthest, in slices, that any vertex of `table` has a neighbour.
+fn reach(table: &GatherTable) -> usize {
+    let slices = table.slices.slice_rows.len().saturating_sub(1);
+    (0..slices)
+        .into_par_iter()
+        .map(|slice| {
+            table
+                .slices
+                .rows(slice)
+                .flat_map(|row| table.neighbor.row(row))
+                .map(|neighbor| (neighbor as usize / LANES).abs_diff(slice))
+                .max()
+                .unwrap_or(0)
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// The buffers of a sweep, as pointers that every band's thread uses (see [`Buffers::step`]).
+#[derive(Clone, Copy)]
+struct Buffers {
+    /// Positions at even steps of the sweep (`current`) and at odd ones (`next`).
+    positions: [[*mut Block; 3]; 2],
+    /// The same as points, when the force pass reads them.
+    points: [Option<*mut [Point; LANES]>; 2],
+    delta: [*mut Block; 3],
+    /// Slices in each buffer.
+    slices: usize,
+}
+
+// SAFETY: the bands' threads use the buffers in disjoint ways (see the module docs and
+// `Buffers::step`).
+unsafe impl Send for Buffers {}
+unsafe impl Sync for Buffers {}
+
+impl Buffers {
+    /// Runs step `j` of the sweep over `slices` with `kernel`, reading the positions of step
+    /// `j - 1` and writing those of step `j` and the deltas. True if all results are finite.
+    ///
+    /// # Safety
+    /// While it runs, no other thread may touch the slices it writes (`slices` of the
+    /// positions of step `j`, the points and the deltas), nor write any it reads (those of
+    /// step `j - 1` within the reach of `slices`). The module docs show the schedule that
+    /// keeps to this.
+    unsafe fn step(
+        &self,
+        j: usize,
+        slices: Range<usize>,
+        kernel: &(impl Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync),
+    ) -> bool {
+        if slices.is_empty() {
+            return true;
+        }
+        assert!(slices.end <= self.slices, "sweep slices out of bounds");
+        let (read, write) = ((j - 1) % 2, j % 2);
+        let (start, len) = (slices.start, slices.len());
+        // SAFETY: the buffers hold `self.slices` slices (checked above), the caller keeps
+        // other threads off what this writes, and writes nothing this reads.
+        unsafe {
+            let positions = Positions::from_raw(
+                self.positions[read].map(|axis| axis.cast_const()),
+                self.slices,
+                self.points[read].map(|points| points.cast_const()),
+            );
+            let out = |axis: *mut Block| std::slice::from_raw_parts_mut(axis.add(start), len);
+            let chunk = VertexChunk {
+                first_slice: start,
+                next: self.positions[write].map(out),
+                delta: self.delta.map(out),
+                points: self.points[write]
+                    .map(|points| std::slice::from_raw_parts_mut(points.add(start), len)),
+            };
+            kernel(positions, chunk)
+        }
+    }
+}
+
+/// Per step of a sweep (index `j`, 1-based), whether its results were all finite.
+type Finite = [bool; DEPTH + 1];
+
+fn both(a: Finite, b: Finite) -> Finite {
+    std::array::from_fn(|j| a[j] && b[j])
+}
+
+impl CpuSolver {
+    /// Whether the next steps may run in one sweep (see the module docs).
+    pub(crate) fn can_sweep(&self) -> bool {
+        self.sweep.is_some()
+            && self.tears.rule().is_none()
+            && self.external.is_none()
+            && self.positions_final_after_integration()
+    }
+
+    /// `depth` steps (2..=[`DEPTH`]) in one sweep; the states are those of as many single
+    /// steps, and an error names the first step whose results were not all finite.
+    pub(crate) fn step_sweep(&mut self, depth: usize) -> Result<(), SimError> {
+        assert!((2..=DEPTH).contains(&depth) && self.can_sweep());
+        let Some(sweep) = self.sweep else {
+            unreachable!("can_sweep checked the plan");
+        };
+        let isa = self.options.instruction_set;
+        let reads_points = self.refresh_points();
+        let Topology::Gather(table) = &self.topology else {
+            unreachable!("only gather plans a sweep");
+        };
+        let slices = self.numbering.slice_count();
+        let integrator = &self.integrator;
+        let points = |rows: &mut Vec<[Point; LANES]>| reads_points.then_some(rows.as_mut_ptr());
+        let buffers = Buffers {
+            positions: [
+                self.current.axes_mut().map(<[Block]>::as_mut_ptr),
+                self.next.axes_mut().map(<[Block]>::as_mut_ptr),
+            ],
+            points: [points(&mut self.points), points(&mut self.next_points)],
+            delta: self.delta.axes_mut().map(<[Block]>::as_mut_ptr),
+            slices,
+        };
+        let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
+            kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
+        };
+        let r = sweep.reach;
+        let bands = (0..sweep.bands).into_par_iter().map(|k| {
+            let band = sweep.band(k, slices);
+            let mut finite = [true; DEPTH + 1];
+            // Where step j has got to; it covers [start + (j-1) r, end - (j-1) r).
+            let mut reached: [usize; DEPTH + 1] =
+                std::array::from_fn(|j| band.start + j.saturating_sub(1) * r);
+            let mut at = band.start;
+            while at < band.end {
+                let end = (at + ADVANCE).min(band.end);
+                // SAFETY (both calls): the schedule of the module docs.
+                finite[1] &= unsafe { buffers.step(1, at..end, &kernel) };
+                for j in 2..=depth {
+                    let stop = band.end.saturating_sub((j - 1) * r);
+                    let limit = if end == band.end {
+                        stop
+                    } else {
+                        end.saturating_sub((j - 1) * r).min(stop)
+                    };
+                    if limit > reached[j] {
+                        finite[j] &= unsafe { buffers.step(j, reached[j]..limit, &kernel) };
+                        reached[j] = limit;
+                    }
+                }
+                at = end;
+            }
+            finite
+        });
+        let inner = bands.reduce(|| [true; DEPTH + 1], both);
+        let boundaries = (0..=sweep.bands).into_par_iter().map(|k| {
+            let b = if k == sweep.bands {
+                slices
+            } else {
+                sweep.band(k, slices).start
+            };
+            let mut finite = [true; DEPTH + 1];
+            for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(2) {
+                let strip = b.saturating_sub((j - 1) * r)..(b + (j - 1) * r).min(slices);
+                // SAFETY: the schedule of the module docs.
+                *finite &= unsafe { buffers.step(j, strip, &kernel) };
+            }
+            finite
+        });
+        let finite = both(inner, boundaries.reduce(|| [true; DEPTH + 1], both));
+        // Stop at the first step with a result that is not finite, as single steps would.
+        let last = (1..=depth).find(|&j| !finite[j]).unwrap_or(depth);
+        if last % 2 == 1 {
+            std::mem::swap(&mut self.current, &mut self.next);
+            std::mem::swap(&mut self.points, &mut self.next_points);
+        }
+        self.points_fresh = reads_points && finite[last];
+        self.steps_taken += last as u64;
+        self.check_finite(finite[last])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use hooke_core::scene::{MeshSection, Scene, SceneFile};
+    use hooke_core::{SimError, Solver};
+    use hooke_testkit::state_of;
+
+    use super::*;
+    use crate::{CpuOptions, Method};
+
+    fn scene(mesh: MeshSection, vertices: u32) -> Scene {
+        SceneFile::benchmark(mesh, vertices)
+            .build(Path::new("bench"), true)
+            .expect("benchmark scene builds")
+    }
+
+    /// A gather solver that sweeps wherever it can, even on a mesh below [`MIN_SLICES`], or
+    /// one that never does.
+    fn solver(scene: &Scene, threads: usize, sweeps: bool) -> CpuSolver {
+        let options = CpuOptions {
+            method: Method::Gather,
+            threads: Some(threads),
+            ..Default::default()
+        };
+        let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
+        solver.sweep = match &solver.topology {
+            Topology::Gather(table) if sweeps => {
+                Sweep::of(table, solver.numbering.slice_count(), threads)
+            }
+            _ => None,
+        };
+        assert_eq!(solver.can_sweep(), sweeps);
+        solver
+    }
+
+    #[test]
+    fn sweeps_give_the_states_of_single_steps() {
+        let meshes = [
+            (MeshSection::unit_grid(96, 96), 96 * 96, false),
+            (MeshSection::unit_irregular(40_000, 11), 40_000, true),
+        ];
+        for (mesh, vertices, reads_points) in meshes {
+            let scene = scene(mesh, vertices);
+            for threads in [1, 2, 3] {
+                let mut single = solver(&scene, threads, false);
+                let mut swept = solver(&scene, threads, true);
+                let plan = swept.sweep.expect("planned");
+                // Bands meet inside the mesh: their boundaries' steps are tested too.
+                assert!(
+                    plan.bands > 1 || threads == 1,
+                    "{vertices} vertices: {plan:?}"
+                );
+                assert_eq!(swept.reads_points, reads_points);
+                // Sweeps of every depth, odd ones included, and a lone step between them.
+                for steps in [4, 1, 2, 3, 7, 9] {
+                    single.step(steps).expect("stable");
+                    swept.step(steps).expect("stable");
+                    let (a, b) = (state_of(&single), state_of(&swept));
+                    assert!(
+                        a == b,
+                        "{vertices} vertices, {threads} threads, after {} steps",
+                        swept.steps_taken()
+                    );
+                }
+                assert_eq!(single.steps_taken(), swept.steps_taken());
+            }
+        }
+    }
+
+    #[test]
+    fn a_sweep_stops_at_the_first_step_that_blew_up() {
+        let mut scene = scene(MeshSection::unit_grid(96, 96), 96 * 96);
+        scene.material.dt = 3.0 * scene.max_stable_dt;
+        let blow_up = |sweeps| {
+            let mut solver = solver(&scene, 2, sweeps);
+            let error = solver.step(100_000).expect_err("must blow up");
+            let SimError::NonFinite { step, .. } = error else {
+                panic!("unexpected {error:?}");
+            };
+            assert_eq!(solver.steps_taken(), step);
+            step
+        };
+        let step = blow_up(true);
+        assert!(step > 1 && step < 100_000);
+        assert_eq!(step, blow_up(false));
+    }
+}

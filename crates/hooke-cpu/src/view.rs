@@ -1,0 +1,144 @@
+//! Read-only views of the buffers a kernel reads at arbitrary indices: the positions (three
+//! axes and, for rows gathered lane by lane, one point per vertex) and scatter's spring forces.
+//!
+//! They hold pointers, not slices. A sweep of several steps (see `crate::paired`) has one
+//! thread read positions around its band of vertices while another thread writes other slices
+//! of the same buffer; a shared slice over the whole buffer would claim that nobody writes any
+//! of it. A view reads 8 floats, or one point, at a time, and the code that makes a view over
+//! memory others write (with [`Positions::from_raw`]) guarantees that none of what is read is
+//! written while the view is in use.
+
+use std::marker::PhantomData;
+
+use crate::kernels::Soa;
+use crate::layout::LANES;
+use crate::simd::{Block, Point, Simd};
+
+/// A run of floats that a kernel reads 8 at a time or gathers from.
+#[derive(Clone, Copy, Debug)]
+pub struct Floats<'a> {
+    start: *const f32,
+    len: usize,
+    _borrow: PhantomData<&'a [f32]>,
+}
+
+// SAFETY: a view only reads, and whoever makes one over shared memory guarantees that what it
+// reads is not written meanwhile (see the module docs).
+unsafe impl Send for Floats<'_> {}
+unsafe impl Sync for Floats<'_> {}
+
+impl<'a> Floats<'a> {
+    pub fn new(values: &'a [f32]) -> Self {
+        Self {
+            start: values.as_ptr(),
+            len: values.len(),
+            _borrow: PhantomData,
+        }
+    }
+
+    /// The 8 floats from `first` on.
+    #[inline(always)]
+    pub fn run(&self, first: usize) -> &'a Block {
+        assert!(first + LANES <= self.len, "run out of bounds");
+        // SAFETY: in bounds (checked), readable and not written while the view lives.
+        unsafe { &*self.start.add(first).cast::<Block>() }
+    }
+
+    /// `values[index[lane] & mask]` per lane.
+    ///
+    /// # Safety
+    /// Every masked index must be below the view's length.
+    #[inline(always)]
+    pub unsafe fn gather<S: Simd>(&self, simd: S, index: &[u32; LANES], mask: u32) -> S::V {
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { simd.gather(self.start, index, mask) }
+    }
+}
+
+/// One point per vertex (or spring slot), gathered lane by lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Points<'a> {
+    start: *const Point,
+    len: usize,
+    _borrow: PhantomData<&'a [Point]>,
+}
+
+// SAFETY: as for `Floats`.
+unsafe impl Send for Points<'_> {}
+unsafe impl Sync for Points<'_> {}
+
+impl<'a> Points<'a> {
+    pub fn new(points: &'a [Point]) -> Self {
+        Self {
+            start: points.as_ptr(),
+            len: points.len(),
+            _borrow: PhantomData,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// `points[index[lane] & mask]` per lane, as x, y and z.
+    ///
+    /// # Safety
+    /// Every masked index must be below the view's length.
+    #[inline(always)]
+    pub unsafe fn gather<S: Simd>(&self, simd: S, index: &[u32; LANES], mask: u32) -> [S::V; 3] {
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { simd.gather_points(self.start, index, mask) }
+    }
+}
+
+/// The positions a kernel reads: three axes and, when its rows read them, the same as points.
+#[derive(Clone, Copy, Debug)]
+pub struct Positions<'a> {
+    pub axes: [Floats<'a>; 3],
+    pub points: Option<Points<'a>>,
+}
+
+impl<'a> Positions<'a> {
+    pub fn new(positions: &'a Soa, points: Option<&'a [Point]>) -> Self {
+        let [xs, ys, zs] = positions.axes();
+        let axes = [xs, ys, zs].map(|axis| Floats::new(axis.as_flattened()));
+        let points = points.map(Points::new);
+        assert!(points.is_none_or(|p| p.len() == axes[0].len));
+        Self { axes, points }
+    }
+
+    /// A view of `blocks` blocks per axis at `axes` and, if given, as many rows of points.
+    ///
+    /// # Safety
+    /// The memory must be readable and stay allocated for `'a`, and no thread may write any
+    /// float or point that the view is read at while it is in use.
+    pub unsafe fn from_raw(
+        axes: [*const Block; 3],
+        blocks: usize,
+        points: Option<*const [Point; LANES]>,
+    ) -> Self {
+        let floats = |start: *const Block| Floats {
+            start: start.cast(),
+            len: blocks * LANES,
+            _borrow: PhantomData,
+        };
+        Self {
+            axes: axes.map(floats),
+            points: points.map(|start| Points {
+                start: start.cast(),
+                len: blocks * LANES,
+                _borrow: PhantomData,
+            }),
+        }
+    }
+
+    /// Slice `slice` of axis `axis`.
+    #[inline(always)]
+    pub fn block(&self, axis: usize, slice: usize) -> &'a Block {
+        self.axes[axis].run(slice * LANES)
+    }
+}
