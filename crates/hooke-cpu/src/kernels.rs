@@ -395,7 +395,7 @@ fn load_positions_row<S: Simd, const POINTS: bool>(
             let index = &rows.gathered[rows.head[row] as usize];
             // SAFETY: `CpuSolver::new` builds every vertex index below `padded_len`, the length
             // of the points.
-            unsafe { points.gather(simd, index, u32::MAX) }
+            unsafe { points.gather_points(simd, index, u32::MAX) }
         }
         // Written out per axis: closures would not inline into the AVX2 functions.
         _ => {
@@ -505,7 +505,7 @@ fn accumulate_points_slice<S: Simd>(
         let index = table.entry.row(row);
         // SAFETY: `CpuSolver::new` builds every spring slot (masked) below the buffer's
         // length: the springs' rows and one row of zeros for padding.
-        let [fx, fy, fz] = unsafe { points.gather(simd, &index, !B_END) };
+        let [fx, fy, fz] = unsafe { points.gather_points(simd, &index, !B_END) };
         force = [
             simd.add(force[0], simd.flip_sign(fx, &index)),
             simd.add(force[1], simd.flip_sign(fy, &index)),

@@ -492,11 +492,10 @@ impl CpuSolver {
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let (next, delta) = (&mut self.next, &mut self.delta);
-        let all = 0..self.numbering.slice_count();
         let all_finite = match &mut self.topology {
             Topology::Gather(table) => {
                 let current = Positions::new(current, points);
-                for_each_vertex_chunk(all, next, delta, next_points, |chunk| {
+                for_each_vertex_chunk(next, delta, next_points, |chunk| {
                     kernels::gather_and_integrate(isa, table, integrator, current, extra, chunk)
                 })
             }
@@ -507,7 +506,7 @@ impl CpuSolver {
             } => {
                 compute_spring_forces(isa, springs, current, points, spring_forces);
                 let spring_forces = &*spring_forces;
-                for_each_vertex_chunk(all, next, delta, next_points, |chunk| {
+                for_each_vertex_chunk(next, delta, next_points, |chunk| {
                     kernels::accumulate_and_integrate(
                         isa,
                         incidence,
@@ -562,8 +561,7 @@ impl CpuSolver {
         let start = Instant::now();
         let phase_forces = &*phase_forces;
         let (next, delta) = (&mut self.next, &mut self.delta);
-        let all = 0..self.numbering.slice_count();
-        let all_finite = for_each_vertex_chunk(all, next, delta, next_points, |chunk| {
+        let all_finite = for_each_vertex_chunk(next, delta, next_points, |chunk| {
             kernels::integrate(isa, integrator, current, phase_forces, extra, chunk)
         });
         times.integration = start.elapsed();
@@ -692,18 +690,16 @@ impl CpuSolver {
     }
 }
 
-/// Runs `kernel` over chunks of [`SLICES_PER_TASK`] slices of `next` and `delta` in parallel,
-/// over the slices in `slices` (`next_points` holds only theirs); true if every chunk
-/// reported finite results.
+/// Runs `kernel` over chunks of [`SLICES_PER_TASK`] slices of `next` and `delta` in parallel;
+/// true if every chunk reported finite results.
 fn for_each_vertex_chunk(
-    slices: std::ops::Range<usize>,
     next: &mut Soa,
     delta: &mut Soa,
     next_points: Option<&mut [[Point; LANES]]>,
     kernel: impl Fn(VertexChunk<'_>) -> bool + Sync,
 ) -> bool {
-    let [nx, ny, nz] = next.axes_mut().map(|axis| &mut axis[slices.clone()]);
-    let [dx, dy, dz] = delta.axes_mut().map(|axis| &mut axis[slices.clone()]);
+    let [nx, ny, nz] = next.axes_mut();
+    let [dx, dy, dz] = delta.axes_mut();
     // Each task's rows of points, or none for every task.
     let points = match next_points {
         Some(points) => Either::Left(points.par_chunks_mut(SLICES_PER_TASK).map(Some)),
@@ -724,7 +720,7 @@ fn for_each_vertex_chunk(
         .enumerate()
         .map(|(task, ((((nx, ny), nz), ((dx, dy), dz)), points))| {
             kernel(VertexChunk {
-                first_slice: slices.start + task * SLICES_PER_TASK,
+                first_slice: task * SLICES_PER_TASK,
                 next: [nx, ny, nz],
                 delta: [dx, dy, dz],
                 points,

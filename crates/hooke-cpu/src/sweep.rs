@@ -180,9 +180,7 @@ impl CpuSolver {
     /// steps, and an error names the first step whose results were not all finite.
     pub(crate) fn step_sweep(&mut self, depth: usize) -> Result<(), SimError> {
         assert!((2..=DEPTH).contains(&depth) && self.can_sweep());
-        let Some(sweep) = self.sweep else {
-            unreachable!("can_sweep checked the plan");
-        };
+        let sweep = self.sweep.expect("can_sweep checked the plan");
         let isa = self.options.instruction_set;
         let reads_points = self.refresh_points();
         let Topology::Gather(table) = &self.topology else {
@@ -206,7 +204,7 @@ impl CpuSolver {
         let r = sweep.reach;
         let bands = (0..sweep.bands).into_par_iter().map(|k| {
             let band = sweep.band(k, slices);
-            let mut finite = [true; DEPTH + 1];
+            let mut finite: Finite = [true; DEPTH + 1];
             // Where step j has got to; it covers [start + (j-1) r, end - (j-1) r).
             let mut reached: [usize; DEPTH + 1] =
                 std::array::from_fn(|j| band.start + j.saturating_sub(1) * r);
@@ -216,12 +214,8 @@ impl CpuSolver {
                 // SAFETY (both calls): the schedule of the module docs.
                 finite[1] &= unsafe { buffers.step(1, at..end, &kernel) };
                 for j in 2..=depth {
-                    let stop = band.end.saturating_sub((j - 1) * r);
-                    let limit = if end == band.end {
-                        stop
-                    } else {
-                        end.saturating_sub((j - 1) * r).min(stop)
-                    };
+                    // One reach behind step j - 1, which also keeps it off the band's end.
+                    let limit = end.saturating_sub((j - 1) * r);
                     if limit > reached[j] {
                         finite[j] &= unsafe { buffers.step(j, reached[j]..limit, &kernel) };
                         reached[j] = limit;
@@ -238,7 +232,7 @@ impl CpuSolver {
             } else {
                 sweep.band(k, slices).start
             };
-            let mut finite = [true; DEPTH + 1];
+            let mut finite: Finite = [true; DEPTH + 1];
             for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(2) {
                 let strip = b.saturating_sub((j - 1) * r)..(b + (j - 1) * r).min(slices);
                 // SAFETY: the schedule of the module docs.

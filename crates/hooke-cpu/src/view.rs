@@ -14,21 +14,35 @@ use crate::kernels::Soa;
 use crate::layout::LANES;
 use crate::simd::{Block, Point, Simd};
 
-/// A run of floats that a kernel reads 8 at a time or gathers from.
-#[derive(Clone, Copy, Debug)]
-pub struct Floats<'a> {
-    start: *const f32,
+/// A run of `T` (floats, or points) that a kernel reads from.
+#[derive(Debug)]
+pub struct Run<'a, T> {
+    start: *const T,
     len: usize,
-    _borrow: PhantomData<&'a [f32]>,
+    _borrow: PhantomData<&'a [T]>,
 }
+
+// Not derived: that would require `T: Clone`, and a view copies only its pointer.
+impl<T> Clone for Run<'_, T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for Run<'_, T> {}
 
 // SAFETY: a view only reads, and whoever makes one over shared memory guarantees that what it
 // reads is not written meanwhile (see the module docs).
-unsafe impl Send for Floats<'_> {}
-unsafe impl Sync for Floats<'_> {}
+unsafe impl<T> Send for Run<'_, T> {}
+unsafe impl<T> Sync for Run<'_, T> {}
 
-impl<'a> Floats<'a> {
-    pub fn new(values: &'a [f32]) -> Self {
+/// Floats that a kernel reads 8 at a time or gathers from.
+pub type Floats<'a> = Run<'a, f32>;
+
+/// One point per vertex (or spring slot), gathered lane by lane.
+pub type Points<'a> = Run<'a, Point>;
+
+impl<'a, T> Run<'a, T> {
+    pub fn new(values: &'a [T]) -> Self {
         Self {
             start: values.as_ptr(),
             len: values.len(),
@@ -36,6 +50,25 @@ impl<'a> Floats<'a> {
         }
     }
 
+    /// `len` values at `start`, which must stay readable for `'a`.
+    fn from_raw(start: *const T, len: usize) -> Self {
+        Self {
+            start,
+            len,
+            _borrow: PhantomData,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+impl<'a> Floats<'a> {
     /// The 8 floats from `first` on.
     #[inline(always)]
     pub fn run(&self, first: usize) -> &'a Block {
@@ -55,41 +88,18 @@ impl<'a> Floats<'a> {
     }
 }
 
-/// One point per vertex (or spring slot), gathered lane by lane.
-#[derive(Clone, Copy, Debug)]
-pub struct Points<'a> {
-    start: *const Point,
-    len: usize,
-    _borrow: PhantomData<&'a [Point]>,
-}
-
-// SAFETY: as for `Floats`.
-unsafe impl Send for Points<'_> {}
-unsafe impl Sync for Points<'_> {}
-
-impl<'a> Points<'a> {
-    pub fn new(points: &'a [Point]) -> Self {
-        Self {
-            start: points.as_ptr(),
-            len: points.len(),
-            _borrow: PhantomData,
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
+impl Points<'_> {
     /// `points[index[lane] & mask]` per lane, as x, y and z.
     ///
     /// # Safety
     /// Every masked index must be below the view's length.
     #[inline(always)]
-    pub unsafe fn gather<S: Simd>(&self, simd: S, index: &[u32; LANES], mask: u32) -> [S::V; 3] {
+    pub unsafe fn gather_points<S: Simd>(
+        &self,
+        simd: S,
+        index: &[u32; LANES],
+        mask: u32,
+    ) -> [S::V; 3] {
         // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
         unsafe { simd.gather_points(self.start, index, mask) }
     }
@@ -107,7 +117,7 @@ impl<'a> Positions<'a> {
         let [xs, ys, zs] = positions.axes();
         let axes = [xs, ys, zs].map(|axis| Floats::new(axis.as_flattened()));
         let points = points.map(Points::new);
-        assert!(points.is_none_or(|p| p.len() == axes[0].len));
+        assert!(points.is_none_or(|p| p.len() == axes[0].len()));
         Self { axes, points }
     }
 
@@ -121,18 +131,10 @@ impl<'a> Positions<'a> {
         blocks: usize,
         points: Option<*const [Point; LANES]>,
     ) -> Self {
-        let floats = |start: *const Block| Floats {
-            start: start.cast(),
-            len: blocks * LANES,
-            _borrow: PhantomData,
-        };
+        let len = blocks * LANES;
         Self {
-            axes: axes.map(floats),
-            points: points.map(|start| Points {
-                start: start.cast(),
-                len: blocks * LANES,
-                _borrow: PhantomData,
-            }),
+            axes: axes.map(|axis| Floats::from_raw(axis.cast(), len)),
+            points: points.map(|points| Points::from_raw(points.cast(), len)),
         }
     }
 
