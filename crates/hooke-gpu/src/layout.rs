@@ -35,7 +35,10 @@ pub struct StepUniforms {
     /// Every spring's stiffness when all are alike (read by the gather kernel's entry point
     /// for that case; 0 otherwise).
     pub uniform_stiffness: f32,
-    pub pad: u32,
+    /// Which of the status's two step clocks is this step's: the solver's current position
+    /// buffer (0 or 1). The uniform buffer holds one copy per value (see
+    /// [`crate::model::GpuModel::uniforms_binding`]).
+    pub parity: u32,
 }
 
 /// One collider (`Collider` in WGSL): a sphere, plane or capsule, scripted or a dynamic ball.
@@ -118,8 +121,10 @@ pub struct GpuStatus {
     pub first_bad_vertex: u32,
     /// Non-zero once a fixed-point contribution was clamped.
     pub fixed_overflow: u32,
-    /// Steps completed since the solver started.
-    pub step_counter: u32,
+    /// Steps completed since the solver started, in two clocks: a step reads the one its
+    /// uniforms' `parity` names, and its integration sets the other to one more. No dispatch
+    /// reads the clock it writes, so the count needs no pass of its own between steps.
+    pub steps_done: [u32; 2],
 }
 
 impl GpuStatus {
@@ -127,12 +132,12 @@ impl GpuStatus {
     /// Set in `first_bad_vertex` when the bad one is a dynamic ball (`BALL_MARK` in WGSL).
     pub const BALL_MARK: u32 = 0x8000_0000;
 
-    pub fn fresh(step_counter: u32) -> Self {
+    pub fn fresh(steps_done: u32) -> Self {
         Self {
             first_bad_step: Self::NO_FAILURE,
             first_bad_vertex: Self::NO_FAILURE,
             fixed_overflow: 0,
-            step_counter,
+            steps_done: [steps_done; 2],
         }
     }
 }

@@ -54,7 +54,10 @@ pub struct GpuModel {
     pub method: GpuMethod,
     /// The host copy of the step uniforms; [`GpuModel::write_uniforms`] sends it.
     pub uniforms: StepUniforms,
+    /// Two copies of the uniforms, `uniform_slot` bytes apart, differing only in `parity`:
+    /// a kernel binds the one for the current position buffer ([`GpuModel::uniforms_binding`]).
     pub uniform_buffer: wgpu::Buffer,
+    uniform_slot: u64,
     /// Per vertex `(dt^2 / m, 1 - c dt / m, stencil mask, 0)`, the first two zero for pinned
     /// vertices (the mask: [`Stencil::mask_as_float`] with a [`GpuTopology::Stencil`], else 0).
     pub scales: wgpu::Buffer,
@@ -82,9 +85,12 @@ impl GpuModel {
     ) -> Result<Self, GpuError> {
         let n = model.vertex_count();
         gpu::check_binding_size(context, "positions", vec4s(n))?;
+        let uniform_slot = (std::mem::size_of::<StepUniforms>() as u64).next_multiple_of(
+            u64::from(context.device.limits().min_uniform_buffer_offset_alignment),
+        );
         let uniform_buffer = context.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("step uniforms"),
-            size: std::mem::size_of::<StepUniforms>() as u64,
+            size: 2 * uniform_slot,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -145,6 +151,7 @@ impl GpuModel {
             material: *material,
             method,
             uniform_buffer,
+            uniform_slot,
             scales,
             topology,
             topology_bytes,
@@ -165,11 +172,28 @@ impl GpuModel {
         self.write_uniforms(context);
     }
 
-    /// Sends the host copy of the step uniforms.
+    /// Sends the host copy of the step uniforms, once per parity.
     pub fn write_uniforms(&self, context: &GpuContext) {
-        context
-            .queue
-            .write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniforms));
+        for parity in 0..2 {
+            let uniforms = StepUniforms {
+                parity,
+                ..self.uniforms
+            };
+            context.queue.write_buffer(
+                &self.uniform_buffer,
+                u64::from(parity) * self.uniform_slot,
+                bytemuck::bytes_of(&uniforms),
+            );
+        }
+    }
+
+    /// The uniforms of a step whose current position buffer is `current`.
+    pub fn uniforms_binding(&self, current: usize) -> wgpu::BindingResource<'_> {
+        wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: &self.uniform_buffer,
+            offset: current as u64 * self.uniform_slot,
+            size: wgpu::BufferSize::new(std::mem::size_of::<StepUniforms>() as u64),
+        })
     }
 
     /// Per-vertex `(dt^2/m, 1 - c dt/m)` and the uniforms that depend on dt (not yet sent).

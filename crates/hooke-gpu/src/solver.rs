@@ -32,7 +32,6 @@ use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
 use crate::kernels::tear::{self, Tear};
-use crate::kernels::tick::Tick;
 use crate::layout::GpuStatus;
 use crate::methods::{Accumulation, GpuMemory, GpuMethod};
 use crate::model::{GpuModel, vec4s};
@@ -79,7 +78,6 @@ pub struct GpuSolver {
     balls: Option<Balls>,
     handles: Option<Handles>,
     self_collide: Option<SelfCollidePass>,
-    tick: Tick,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     steps_taken: u64,
 }
@@ -204,7 +202,6 @@ impl GpuSolver {
             Some(config) => Some(SelfCollidePass::new(ctx, &gpu_model, &state, config)?),
             None => None,
         };
-        let tick = Tick::new(ctx, &state)?;
         let tear = match (&model.tearing, &broken) {
             (Some(tearing), Some(broken)) => {
                 Some(Tear::new(ctx, &gpu_model, &state, tearing, broken)?)
@@ -241,7 +238,6 @@ impl GpuSolver {
             balls,
             handles,
             self_collide,
-            tick,
             timestamps,
             steps_taken: 0,
             context,
@@ -333,8 +329,8 @@ impl GpuSolver {
     }
 
     /// Hands the passes of one step to `sink`, in order: tearing (when the model tears), the
-    /// control's forces (when it has any), the force pass, the accumulation (scatter), integration, collision, the tick. The
-    /// only place that lists them.
+    /// control's forces (when it has any), the force pass, the accumulation (scatter), integration, collision. The
+    /// only place that lists them. (The step counts itself in integration: see `GpuStatus`.)
     fn record_step(&self, sink: &mut dyn PassSink) -> Result<(), GpuError> {
         let current = self.state.current;
         if let Some(tear) = &self.tear {
@@ -403,9 +399,7 @@ impl GpuSolver {
         if let Some(pass) = &self.self_collide {
             sink.pass(Phase::Collision, &mut |e, t| pass.encode(e, current, t))?;
         }
-        sink.pass(Phase::Bookkeeping, &mut |e, t| {
-            self.tick.kernel.encode(e, current, t);
-        })
+        Ok(())
     }
 
     /// Records `steps` steps into `encoder`, for a frame that also draws: simulation passes,
@@ -449,7 +443,8 @@ impl GpuSolver {
         self.check_status()
     }
 
-    /// The 16-byte status buffer, for callers that read it back without waiting (see
+    /// The status buffer ([`crate::layout::GpuStatus`]), for callers that read it back without
+    /// waiting (see
     /// [`GpuSolver::judge_status`]).
     pub fn status_buffer(&self) -> &wgpu::Buffer {
         &self.state.status

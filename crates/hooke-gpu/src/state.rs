@@ -16,7 +16,7 @@ pub struct GpuState {
     /// Which of `positions` holds `x(t)`; the other receives `x(t + dt)`.
     pub current: usize,
     pub deltas: wgpu::Buffer,
-    /// First non-finite vertex and step, fixed-point overflow, the step counter (16 bytes).
+    /// First non-finite vertex and step, fixed-point overflow, the step clocks ([`GpuStatus`]).
     pub status: wgpu::Buffer,
     vertex_count: usize,
 }

@@ -18,8 +18,6 @@ pub enum Phase {
     Accumulation,
     Integration,
     Collision,
-    /// The step counter: not part of any phase's time.
-    Bookkeeping,
 }
 
 impl Phase {
@@ -31,7 +29,6 @@ impl Phase {
             Self::Accumulation => "force accumulation",
             Self::Integration => "integration",
             Self::Collision => "collision",
-            Self::Bookkeeping => "step counter",
         }
     }
 }
@@ -92,7 +89,7 @@ pub struct Timestamped<'e, 'q> {
 impl PassSink for Timestamped<'_, '_> {
     fn pass(&mut self, phase: Phase, record: &mut Record<'_>) -> Result<(), GpuError> {
         let index = 2 * self.phases.len() as u32;
-        let writes = (phase != Phase::Bookkeeping && index + 2 <= TIMESTAMP_SLOTS).then(|| {
+        let writes = (index + 2 <= TIMESTAMP_SLOTS).then(|| {
             self.phases.push(phase);
             wgpu::ComputePassTimestampWrites {
                 query_set: self.query_set,
@@ -140,6 +137,5 @@ pub fn add_phase(times: &mut PhaseTimes, phase: Phase, duration: Duration) {
         Phase::Accumulation => *times.force_accumulation.get_or_insert(Duration::ZERO) += duration,
         Phase::Integration => times.integration += duration,
         Phase::Collision => times.collision += duration,
-        Phase::Bookkeeping => {}
     }
 }

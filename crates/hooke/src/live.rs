@@ -155,7 +155,11 @@ impl LiveSimulation {
             )
         });
         let engine = Simulation::from_scene(&scene, choice.solver(), Some(Arc::clone(&context)))?;
-        let status = AsyncReadback::new(&context, "status read-back", 16);
+        let status = AsyncReadback::new(
+            &context,
+            "status read-back",
+            std::mem::size_of::<hooke_gpu::layout::GpuStatus>() as u64,
+        );
         let torn = AsyncReadback::new(&context, "broken spring count read-back", 16);
         let colliders = &scene.model.collision.colliders;
         Ok(Self {

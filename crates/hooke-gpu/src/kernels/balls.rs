@@ -35,9 +35,9 @@ impl Balls {
             super::BALLS,
             "advance",
             colliders * WORKGROUP_SIZE,
-            |_| {
+            |current| {
                 vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (1, collide.colliders.as_entire_binding()),
                     (2, collide.reactions.as_entire_binding()),
                     (4, state.status.as_entire_binding()),
@@ -50,9 +50,9 @@ impl Balls {
             super::BALLS,
             "contacts",
             1,
-            |_| {
+            |current| {
                 vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (1, collide.colliders.as_entire_binding()),
                     (3, state.status.as_entire_binding()),
                     (12, collide.keyframes.as_entire_binding()),

@@ -48,7 +48,7 @@ fn advance(
     colliders[c].place = vec4<f32>(position, colliders[c].place.w);
     if !is_finite3(position) || !is_finite3(velocity) {
         // Reported like a vertex, marked as a ball (a bad vertex of the same step wins).
-        let step = status.step_counter + 1u;
+        let step = status.steps_done[u.parity] + 1u;
         let previous = atomicMin(&status.first_bad_step, step);
         if previous >= step {
             atomicMin(&status.first_bad_vertex, BALL_MARK | c);
@@ -56,8 +56,8 @@ fn advance(
     }
 }
 
-// The status buffer, for the step counter that places scripted colliders.
-@group(0) @binding(3) var<storage, read> status_words: array<u32, 4>;
+// The status buffer, for the step clocks that place scripted colliders.
+@group(0) @binding(3) var<storage, read> status_words: array<u32, 5>;
 
 // Collider `c` at time `t` (a dynamic ball where it is): place (xyz, radius or -1) and velocity.
 fn place(c: u32, t: f32) -> Placement {
@@ -70,7 +70,7 @@ fn place(c: u32, t: f32) -> Placement {
 
 @compute @workgroup_size(1)
 fn contacts() {
-    let t = f32(status_words[3] + 1u) / u.inverse_dt;
+    let t = f32(status_words[STEPS_DONE_WORD + u.parity] + 1u) / u.inverse_dt;
     for (var k = 0u; k < u.collider_count; k++) {
         let inverse_mass = colliders[k].motion.w;
         if inverse_mass <= 0.0 {

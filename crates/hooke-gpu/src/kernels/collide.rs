@@ -75,7 +75,7 @@ impl Collide {
             n as u32,
             |current| {
                 vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (1, state.positions[current].as_entire_binding()),
                     (2, state.positions[1 - current].as_entire_binding()),
                     (3, state.deltas.as_entire_binding()),

@@ -12,8 +12,8 @@
 // restitution; for a scripted collider: 1 if a capsule, 0, repeat, keyframes). A scripted collider's first
 // entry is its place at time 0; a dynamic ball's is where it is now (balls.wgsl moves it).
 @group(0) @binding(5) var<storage, read> colliders: array<Collider>;
-// The status buffer, read only here for its step counter (the fourth word).
-@group(0) @binding(6) var<storage, read> status_words: array<u32, 4>;
+// The status buffer, read only here for its step clocks (`STEPS_DONE_WORD`).
+@group(0) @binding(6) var<storage, read> status_words: array<u32, 5>;
 // With dynamic balls: per vertex and collider, m c / dt^2 for the move c the collider made
 // (N), which balls.wgsl sums into the ball's reaction.
 @group(0) @binding(7) var<storage, read_write> reactions: array<vec4<f32>>;
@@ -28,7 +28,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     var p = next_positions[v].xyz;
     let dt = 1.0 / u.inverse_dt;
     // Colliders are placed where their script puts them at the end of this step.
-    let t = f32(status_words[3] + 1u) * dt;
+    let t = f32(status_words[STEPS_DONE_WORD + u.parity] + 1u) * dt;
     for (var c = 0u; c < u.collider_count; c++) {
         let motion = colliders[c].motion;
         var velocity = motion.xyz;

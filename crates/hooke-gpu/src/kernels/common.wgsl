@@ -28,8 +28,12 @@ struct StepUniforms {
     stiffness_scale: f32,
     // Every spring's stiffness, when all are alike and none can tear (see gather_integrate).
     uniform_stiffness: f32,
-    pad: u32,
+    // Which of the status's two step clocks is this step's (the current position buffer).
+    parity: u32,
 }
+
+// Word of `Status` where `steps_done` starts, for kernels that read it as plain words.
+const STEPS_DONE_WORD: u32 = 3u;
 
 // Mirrors `GpuStatus` in layout.rs: written by the kernels, read back by the solver.
 struct Status {
@@ -39,8 +43,9 @@ struct Status {
     first_bad_vertex: atomic<u32>,
     // Non-zero once a fixed-point contribution was clamped.
     fixed_overflow: atomic<u32>,
-    // Steps completed since the solver started (advanced by the tick kernel).
-    step_counter: u32,
+    // Steps completed since the solver started, in two clocks: a step reads
+    // `steps_done[u.parity]` and its integration sets the other one (see `verlet.wgsl`).
+    steps_done: array<u32, 2>,
 }
 
 // Mirrors `GpuCollider` in layout.rs: one sphere, plane or capsule collider.

@@ -92,7 +92,7 @@ impl External {
             n as u32,
             |current| {
                 vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (1, state.positions[current].as_entire_binding()),
                     (3, point_and_drag.as_entire_binding()),
                     (6, triangle_forces.as_entire_binding()),
@@ -112,7 +112,7 @@ impl External {
             triangle_count as u32,
             |current| {
                 vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (1, state.positions[current].as_entire_binding()),
                     (2, state.deltas.as_entire_binding()),
                     (4, wind.as_entire_binding()),

@@ -37,7 +37,7 @@ impl ForceSprings {
             spring_count,
             |current| {
                 vec![
-                    (0, model.uniform_buffer.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (1, state.positions[current].as_entire_binding()),
                     (2, springs.as_entire_binding()),
                     (3, spring_forces.as_entire_binding()),

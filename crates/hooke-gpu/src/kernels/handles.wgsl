@@ -16,8 +16,8 @@ struct HandleVertex {
 @group(0) @binding(4) var<storage, read> handle_vertices: array<HandleVertex>;
 // The colliders as collide.wgsl and balls.wgsl keep them (a placeholder when there are none).
 @group(0) @binding(5) var<storage, read> colliders: array<Collider>;
-// The status buffer, read only here for its step counter (the fourth word).
-@group(0) @binding(6) var<storage, read> status_words: array<u32, 4>;
+// The status buffer, read only here for its step clocks (`STEPS_DONE_WORD`).
+@group(0) @binding(6) var<storage, read> status_words: array<u32, 5>;
 // Two entries per handle: (the collider it follows, or -1 for its own path; 0; 1 if the path
 // repeats; the path's keyframe count), then that collider's anchor at time 0 xyz.
 @group(0) @binding(8) var<storage, read> handles: array<vec4<f32>>;
@@ -33,7 +33,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     let rest = handle_vertices[k].rest;
     let motion = handles[2u * h];
     let dt = 1.0 / u.inverse_dt;
-    let t = f32(status_words[3] + 1u) * dt;
+    let t = f32(status_words[STEPS_DONE_WORD + u.parity] + 1u) * dt;
     var displacement: vec3<f32>;
     if motion.x < 0.0 {
         // The handle's keyframes follow the colliders' in the keyframe buffer.

@@ -53,7 +53,7 @@ pub fn verlet_bindings<'a>(
     current: usize,
 ) -> Vec<(u32, wgpu::BindingResource<'a>)> {
     vec![
-        (0, model.uniform_buffer.as_entire_binding()),
+        (0, model.uniforms_binding(current)),
         (1, state.positions[current].as_entire_binding()),
         (2, state.positions[1 - current].as_entire_binding()),
         (3, state.deltas.as_entire_binding()),

@@ -17,7 +17,6 @@ pub mod integrate;
 pub mod radix_sort;
 pub mod self_collide;
 pub mod tear;
-pub mod tick;
 
 #[cfg(test)]
 mod testing;
@@ -25,6 +24,7 @@ mod testing;
 /// The buffers every scatter accumulation binds.
 #[derive(Debug)]
 pub struct ScatterBuffers<'a> {
+    /// The step uniforms, bound whole: the accumulations read neither parity's fields.
     pub uniforms: &'a wgpu::Buffer,
     pub springs: &'a wgpu::Buffer,
     /// The per-vertex sums the accumulation writes.
@@ -92,7 +92,6 @@ pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
 pub const INTEGRATE: &str = kernel_source!(with verlet "integrate.wgsl");
 pub const INTEGRATE_FIXED: &str = kernel_source!(with verlet "integrate_fixed.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
-pub const TICK: &str = kernel_source!("tick.wgsl");
 pub const TEAR: &str = kernel_source!("tear.wgsl");
 pub const COLLIDE: &str = kernel_source!(with paths "collide.wgsl");
 pub const BALLS: &str = kernel_source!(with paths "balls.wgsl");
@@ -113,7 +112,6 @@ pub const ALL: &[(&str, &str)] = &[
     ("integrate", INTEGRATE),
     ("integrate_fixed", INTEGRATE_FIXED),
     ("external", EXTERNAL),
-    ("tick", TICK),
     ("tear", TEAR),
     ("collide", COLLIDE),
     ("balls", BALLS),

@@ -1,7 +1,8 @@
 // Verlet with damping (paper eq. 3-4) in delta form, the same arithmetic as the CPU solver:
 // with d = x - x_prev, a = dt^2 / m and v = 1 - c dt / m (both 0 for pinned vertices),
 // d' = v d + a F + g dt^2 and x' = x + d'. Storing d instead of x_prev keeps float32
-// increments at their own precision. Records the first non-finite position in `status`.
+// increments at their own precision. Records the first non-finite position in `status`, and
+// counts the step there.
 // Prepended to every kernel that integrates: `integrate.wgsl` (after a scatter method's
 // accumulation) and `gather_integrate.wgsl` (which sums the springs in the same invocation).
 
@@ -28,8 +29,13 @@ fn integrate_vertex(v: u32, x: vec3<f32>, spring_force: vec3<f32>) {
     let next = select(x, x + delta, free);
     deltas[v] = vec4<f32>(delta, 0.0);
     next_positions[v] = vec4<f32>(next, 1.0);
+    let done = status.steps_done[u.parity];
+    if v == 0u {
+        // Every step integrates vertex 0 once: it advances the clock the next step reads.
+        status.steps_done[1u - u.parity] = done + 1u;
+    }
     if !is_finite3(next) {
-        let step = status.step_counter + 1u;
+        let step = done + 1u;
         // Steps run one after another, so only invocations of the first bad step see
         // `previous >= step` and compete for the lowest vertex.
         let previous = atomicMin(&status.first_bad_step, step);
