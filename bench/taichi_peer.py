@@ -2,10 +2,9 @@
 backend, for a side-by-side comparison on the same driver (issue 14: every hooke GPU method at
 least 1.5x faster than Taichi's same method).
 
-The workload is `hooke bench`'s: an n x n grid over the unit square in the x-z plane, every
-unique edge of its triangles (two per cell, split along the v00-v11 diagonal) a spring with
-stiffness 0.25 m / dt^2, mass 1 / N per vertex, damping 0.01 m / dt, dt = 1 ms, gravity, the
-four corners pinned; damped Verlet in delta form, as hooke integrates.
+The workload is `hooke bench`'s grids, built by bench/workload.py (shared with the Warp peer,
+warp_peer.py): n x n vertices over the unit square, every unique edge a spring, the bench's
+material, the four corners pinned; damped Verlet in delta form, as hooke integrates.
 
 Methods, each written the way a Taichi user would:
 - gather: one kernel per step; each vertex sums its springs from a CSR adjacency (in the mesh's
@@ -24,64 +23,36 @@ ms/step: the median over `--repeats` timed blocks of `--steps` steps, each block
 
 import argparse
 import statistics
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import taichi as ti
 
-DT = 1e-3
-GRAVITY = (0.0, -9.81, 0.0)
+sys.path.insert(0, str(Path(__file__).parent))
+import workload  # noqa: E402  (beside this script, not a package)
 
-
-def grid_springs(n: int) -> np.ndarray:
-    """Unique edges of hooke's grid triangulation, as (a, b) rows with a < b."""
-    v = np.arange(n * n, dtype=np.int64).reshape(n, n)
-    v00, v01 = v[:-1, :-1].ravel(), v[:-1, 1:].ravel()
-    v10, v11 = v[1:, :-1].ravel(), v[1:, 1:].ravel()
-    # Triangles (v00, v10, v11) and (v00, v11, v01): their edges, deduplicated.
-    edges = np.concatenate(
-        [
-            np.stack([v00, v10], 1),
-            np.stack([v10, v11], 1),
-            np.stack([v00, v11], 1),
-            np.stack([v11, v01], 1),
-            np.stack([v00, v01], 1),
-        ]
-    )
-    edges.sort(axis=1)
-    return np.unique(edges, axis=0).astype(np.int32)
-
-
-def grid_positions(n: int) -> np.ndarray:
-    u = np.linspace(-0.5, 0.5, n)
-    x, z = np.meshgrid(u, u)  # rows run along z, columns along x, as hooke numbers them
-    return np.stack([x.ravel(), np.zeros(n * n), z.ravel()], 1).astype(np.float32)
+DT = workload.DT
+GRAVITY = workload.GRAVITY
 
 
 class Sheet:
     """Fields shared by both methods."""
 
     def __init__(self, n: int) -> None:
-        count = n * n
-        positions = grid_positions(n)
-        springs = grid_springs(n)
-        mass = 1.0 / count
-        self.count, self.spring_count = count, len(springs)
-        self.stiffness = 0.25 * mass / (DT * DT)
-        damping = 0.01 * mass / DT
-        rest = np.linalg.norm(positions[springs[:, 0]] - positions[springs[:, 1]], axis=1)
-        free = np.ones(count, dtype=np.float32)
-        free[[0, n - 1, count - n, count - 1]] = 0.0
-        self.x = ti.Vector.field(3, ti.f32, count)
-        self.x_next = ti.Vector.field(3, ti.f32, count)
-        self.d = ti.Vector.field(3, ti.f32, count)
+        mesh = workload.grid(n)
+        self.mesh = mesh
+        self.count, self.spring_count = mesh.count, len(mesh.springs)
+        self.stiffness = mesh.stiffness
+        self.x = ti.Vector.field(3, ti.f32, mesh.count)
+        self.x_next = ti.Vector.field(3, ti.f32, mesh.count)
+        self.d = ti.Vector.field(3, ti.f32, mesh.count)
         # Per vertex: dt^2 / m and 1 - c dt / m, both 0 when pinned.
-        self.scale = ti.Vector.field(2, ti.f32, count)
-        self.x.from_numpy(positions)
+        self.scale = ti.Vector.field(2, ti.f32, mesh.count)
+        self.x.from_numpy(mesh.positions)
         self.d.fill(0.0)
-        scales = np.stack([free * DT * DT / mass, free * (1.0 - damping * DT / mass)], 1)
-        self.scale.from_numpy(scales.astype(np.float32))
-        self.springs_np, self.rest_np = springs, rest.astype(np.float32)
+        self.scale.from_numpy(mesh.scale)
 
 
 @ti.func
@@ -108,19 +79,13 @@ def integrate(
 class Gather(Sheet):
     def __init__(self, n: int) -> None:
         super().__init__(n)
-        a, b = self.springs_np[:, 0], self.springs_np[:, 1]
-        ends = np.concatenate([a, b])
-        others = np.concatenate([b, a])
-        rests = np.concatenate([self.rest_np, self.rest_np])
-        order = np.argsort(ends, kind="stable")
-        offsets = np.zeros(self.count + 1, dtype=np.int32)
-        np.cumsum(np.bincount(ends, minlength=self.count), out=offsets[1:])
+        offsets, neighbors, rests = self.mesh.csr()
         self.offsets = ti.field(ti.i32, self.count + 1)
-        self.neighbors = ti.field(ti.i32, len(ends))
-        self.rests = ti.field(ti.f32, len(ends))
+        self.neighbors = ti.field(ti.i32, len(neighbors))
+        self.rests = ti.field(ti.f32, len(rests))
         self.offsets.from_numpy(offsets)
-        self.neighbors.from_numpy(others[order].astype(np.int32))
-        self.rests.from_numpy(rests[order])
+        self.neighbors.from_numpy(neighbors)
+        self.rests.from_numpy(rests)
 
     @ti.kernel
     def step_from(self, x: ti.template(), x_next: ti.template()):
@@ -147,8 +112,8 @@ class Scatter(Sheet):
         self.ends = ti.Vector.field(2, ti.i32, self.spring_count)
         self.rests = ti.field(ti.f32, self.spring_count)
         self.forces = ti.Vector.field(3, ti.f32, self.count)
-        self.ends.from_numpy(self.springs_np)
-        self.rests.from_numpy(self.rest_np)
+        self.ends.from_numpy(self.mesh.springs)
+        self.rests.from_numpy(self.mesh.rest)
         self.forces.fill(0.0)
 
     @ti.kernel

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# The real-GPU figures of the README, in one run: `hooke bench --backend gpu` over the grids and
+# the irregular mesh on Vulkan, then the NVIDIA Warp peer (bench/warp_peer.py, CUDA) on the same
+# workload, after checking that hooke's GPU and Warp step the same grid to the same state.
+#
+#   bench/real_gpu.sh HOOKE_BINARY OUT_DIR [SIZES [WARP_PEER_OPTIONS...]]
+#
+# Needs a Vulkan driver for the GPU (WGPU_BACKEND=vulkan is set here) and `import warp` to work.
+# Every table also goes to OUT_DIR.
+set -euo pipefail
+hooke=$1
+out=$2
+sizes=${3:-128,256,512,1024,2048}
+shift $(($# < 3 ? $# : 3))
+mkdir -p "$out"
+export WGPU_BACKEND=vulkan
+here=$(cd "$(dirname "$0")" && pwd)
+scenes=$here/../scenes
+work=$(mktemp -d)
+
+nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.sm,clocks.max.sm,clocks.mem \
+  --format=csv | tee "$out/nvidia-smi.csv" || true
+
+echo "== hooke bench --backend gpu"
+"$hooke" bench --backend gpu --sizes "$sizes" --irregular 65536 --shuffled 0 \
+  --steps 200 --rounds 3 --warmup 20 2>&1 | tee "$out/hooke-gpu.txt"
+
+echo "== the same grid on hooke's GPU and in Warp"
+"$hooke" run "$scenes/bench-grid-128.toml" --backend gpu --method gather --steps 100 \
+  --no-frames --output "$work/grid-128" >/dev/null
+# The bench's irregular mesh as hooke builds it, for the peer to read.
+"$hooke" run "$scenes/bench-irregular.toml" --steps 0 --allow-unstable --no-frames \
+  --output "$work/irregular-65536" >/dev/null
+
+echo "== warp peer"
+python3 "$here/warp_peer.py" --sizes "$sizes" --mesh "$work/irregular-65536/final-state.ply" \
+  --compare "$work/grid-128/final-state.ply" --steps 300 --repeats 5 "$@" 2>&1 | tee "$out/warp.txt"
+rm -rf "$work"
