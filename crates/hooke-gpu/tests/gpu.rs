@@ -411,7 +411,8 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     // Sizes off the 64-pair rounds and 1024-pair blocks, key ranges with many and few
-    // repeats, 8 to 32 bits (odd and even pass counts).
+    // repeats, 8 to 32 bits (odd and even pass counts); over 64 blocks, so each invocation of
+    // the per-digit scan sums more than one block.
     for (count, bits, range) in [
         (1, 8, 256),
         (63, 8, 4),
@@ -421,6 +422,7 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
         (20_000, 24, 1 << 24),
         (9000, 24, 40),
         (3000, 32, u32::MAX),
+        (150_000, 16, 5000),
     ] {
         let keys: Vec<u32> = (0..count).map(|_| rng.random_range(0..range)).collect();
         let (gpu_keys, gpu_order) =

@@ -3,7 +3,8 @@
 //! three kernels (count digits per block, scan, scatter); the pairs go back and forth between
 //! two buffer pairs, so the result is in the input's pair after an even number of passes and
 //! in the other after an odd one. A block is [`BLOCK`] pairs, one workgroup's: the histogram
-//! holds a quarter as many counts as pairs, which keeps the one-workgroup scan short.
+//! holds a quarter as many counts as pairs, scanned by one workgroup per digit, and then each
+//! digit's total.
 
 use crate::GpuError;
 use crate::context::GpuContext;
@@ -53,7 +54,8 @@ impl RadixSort {
         let keys = [0, 1].map(|k| zeroed(context, &format!("sort keys {k}"), pair_bytes, usage));
         let values =
             [0, 1].map(|k| zeroed(context, &format!("sort values {k}"), pair_bytes, usage));
-        let histogram_bytes = 4 * DIGITS * u64::from(block_count);
+        // Each digit's count per block, then each digit's total (written by the scan).
+        let histogram_bytes = 4 * DIGITS * (u64::from(block_count) + 1);
         let histogram = zeroed(context, "sort histogram", histogram_bytes, usage);
         let count_digits =
             compute_pipeline(context, "radix count", super::RADIX_SORT, "count_digits")?;
@@ -169,7 +171,8 @@ impl RadixSort {
             if index > 0 || !self.first_counted {
                 dispatch_in(pass, &self.count_digits, count_group, block_invocations);
             }
-            dispatch_in(pass, &self.scan, scan_group, WORKGROUP_SIZE);
+            // One workgroup per digit.
+            dispatch_in(pass, &self.scan, scan_group, DIGITS as u32 * WORKGROUP_SIZE);
             dispatch_in(pass, &self.scatter, scatter_group, block_invocations);
         }
     }
@@ -240,5 +243,7 @@ mod tests {
         assert_eq!(DIGITS, 1 << BITS_PER_PASS);
         assert_eq!(constant("BLOCK"), BLOCK);
         assert_eq!(constant("ROUNDS") * WORKGROUP_SIZE, BLOCK);
+        // `scatter` gives each invocation the same number of digits' totals to sum.
+        assert_eq!(DIGITS % u64::from(WORKGROUP_SIZE), 0);
     }
 }

@@ -1,6 +1,7 @@
 // One pass of a stable LSD radix sort of (key, value) pairs on 8-bit digits, in three kernels:
 // `count_digits` counts each block's digits, `scan` turns the counts (digit-major, then block)
-// into each block's first output slot per digit, and `scatter` moves every pair to its slot,
+// into each block's first slot among its digit's, with each digit's total after them, and
+// `scatter` adds the totals of the digits below and moves every pair to its slot,
 // ranked within its block by its position so equal digits keep their order. Blocks and the
 // histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
 
@@ -35,19 +36,45 @@ fn count_digits(
     count_block_digits(lane, block_index(group, groups), su.block_count, su.count);
 }
 
-// One workgroup: each invocation sums a contiguous run of the histogram, the run totals are
-// scanned in shared memory, then each run is rewritten as exclusive prefix sums.
+// One workgroup per digit: each invocation sums a contiguous run of the digit's counts (one per
+// block), the run totals are scanned in shared memory, then each run is rewritten as exclusive
+// prefix sums within the digit, and the digit's total goes after the histogram for `scatter`.
+// (One workgroup for the whole histogram ran each invocation over thousands of counts: on a
+// real GPU the self-collision's sorts spent most of their time there.)
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn scan(@builtin(local_invocation_index) lane: u32) {
-    let length = DIGITS * su.block_count;
-    let run = (length + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
-    let start = min(lane * run, length);
-    let end = min(start + run, length);
+fn scan(
+    @builtin(local_invocation_index) lane: u32,
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let digit = block_index(group, groups);
+    // Uniform across the workgroup, so the barriers below are reached by every invocation.
+    if digit >= DIGITS {
+        return;
+    }
+    let base = digit * su.block_count;
+    let run = (su.block_count + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
+    let start = min(lane * run, su.block_count);
+    let end = min(start + run, su.block_count);
     var total = 0u;
     for (var i = start; i < end; i++) {
-        total += histogram[i];
+        total += histogram[base + i];
     }
-    partial_sums[lane] = total;
+    let earlier = exclusive_scan(lane, total);
+    var running = earlier;
+    for (var i = start; i < end; i++) {
+        let c = histogram[base + i];
+        histogram[base + i] = running;
+        running += c;
+    }
+    if lane == WORKGROUP_SIZE - 1u {
+        histogram[DIGITS * su.block_count + digit] = running;
+    }
+}
+
+// The sum of `value` over the invocations before `lane` (every invocation calls it).
+fn exclusive_scan(lane: u32, value: u32) -> u32 {
+    partial_sums[lane] = value;
     workgroupBarrier();
     for (var offset = 1u; offset < WORKGROUP_SIZE; offset <<= 1u) {
         var earlier = 0u;
@@ -58,12 +85,10 @@ fn scan(@builtin(local_invocation_index) lane: u32) {
         partial_sums[lane] += earlier;
         workgroupBarrier();
     }
-    var running = partial_sums[lane] - total;
-    for (var i = start; i < end; i++) {
-        let c = histogram[i];
-        histogram[i] = running;
-        running += c;
-    }
+    let inclusive = partial_sums[lane];
+    // Callers may reuse partial_sums right after.
+    workgroupBarrier();
+    return inclusive - value;
 }
 
 // The block's pairs go out in ROUNDS rounds of WORKGROUP_SIZE, in order: a pair's slot is its
@@ -79,8 +104,18 @@ fn scatter(
     if block >= su.block_count {
         return;
     }
-    for (var d = lane; d < DIGITS; d += WORKGROUP_SIZE) {
-        next_slot[d] = histogram[d * su.block_count + block];
+    // Each digit's first slot is the totals of the digits below it (after the histogram) plus
+    // the blocks' before this one: each invocation takes a run of consecutive digits.
+    let run = DIGITS / WORKGROUP_SIZE;
+    let totals = DIGITS * su.block_count;
+    var sum = 0u;
+    for (var d = lane * run; d < lane * run + run; d++) {
+        sum += histogram[totals + d];
+    }
+    var below = exclusive_scan(lane, sum);
+    for (var d = lane * run; d < lane * run + run; d++) {
+        next_slot[d] = below + histogram[d * su.block_count + block];
+        below += histogram[totals + d];
     }
     for (var w = lane; w < DIGITS * WORDS; w += WORKGROUP_SIZE) {
         atomicStore(&members[w], 0u);
