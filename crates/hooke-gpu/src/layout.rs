@@ -150,7 +150,9 @@ pub struct SortUniforms {
     /// The pass sorts on bits `shift..shift + 8` of the key.
     pub shift: u32,
     pub block_count: u32,
-    pub pad: u32,
+    /// Digits per slice of the histogram that one workgroup of the scan takes (a power of
+    /// two: few blocks, many digits per slice; see `radix_sort::slice_digits`).
+    pub digits_per_slice: u32,
 }
 
 /// One self-collision grid's constants (`SelfUniforms` in `self_collide.wgsl`).

@@ -411,8 +411,8 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     // Sizes off the 64-pair rounds and 1024-pair blocks, key ranges with many and few
-    // repeats, 8 to 32 bits (odd and even pass counts); over 64 blocks, so each invocation of
-    // the per-digit scan sums more than one block.
+    // repeats, 8 to 32 bits (odd and even pass counts); up to 293 blocks, so the scan's
+    // slices of digits number 1 to 128 (more than one per invocation of `scatter`).
     for (count, bits, range) in [
         (1, 8, 256),
         (63, 8, 4),
@@ -423,6 +423,7 @@ fn gpu_radix_sort_equals_a_stable_cpu_sort() {
         (9000, 24, 40),
         (3000, 32, u32::MAX),
         (150_000, 16, 5000),
+        (300_000, 8, 200),
     ] {
         let keys: Vec<u32> = (0..count).map(|_| rng.random_range(0..range)).collect();
         let (gpu_keys, gpu_order) =

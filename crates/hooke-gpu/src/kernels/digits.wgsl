@@ -13,7 +13,8 @@ struct SortUniforms {
     // The digit of a key is (key >> shift) & (DIGITS - 1).
     shift: u32,
     block_count: u32,
-    pad: u32,
+    // Digits per slice of the histogram scanned by one workgroup (a power of two).
+    digits_per_slice: u32,
 }
 
 // DIGITS counts per block, digit-major: entry digit * block_count + block. After `scan`, each

@@ -3,8 +3,8 @@
 //! three kernels (count digits per block, scan, scatter); the pairs go back and forth between
 //! two buffer pairs, so the result is in the input's pair after an even number of passes and
 //! in the other after an odd one. A block is [`BLOCK`] pairs, one workgroup's: the histogram
-//! holds a quarter as many counts as pairs, scanned by one workgroup per digit, and then each
-//! digit's total.
+//! holds a quarter as many counts as pairs, scanned in slices of digits (one workgroup each,
+//! [`SLICE_COUNTS`] counts at most unless a digit has more), and then each slice's total.
 
 use crate::GpuError;
 use crate::context::GpuContext;
@@ -17,6 +17,16 @@ const BITS_PER_PASS: u32 = 8;
 const DIGITS: u64 = 256;
 /// Pairs per block (`BLOCK` in `digits.wgsl`).
 pub const BLOCK: u32 = 1024;
+/// Counts one workgroup of the scan takes at most, unless a digit alone has more: 16 per
+/// invocation.
+const SLICE_COUNTS: u32 = 1024;
+
+/// Digits per slice of the histogram that one scan workgroup takes: as many as fit in
+/// [`SLICE_COUNTS`], a power of two from 1 (a slice per digit) to all 256 (one workgroup).
+fn slice_digits(block_count: u32) -> u32 {
+    let fitting = (SLICE_COUNTS / block_count.max(1)).clamp(1, DIGITS as u32);
+    1 << fitting.ilog2()
+}
 
 /// Buffers and recorded bind groups to sort `count` pairs on their low `key_bits` bits.
 #[derive(Debug)]
@@ -25,6 +35,8 @@ pub struct RadixSort {
     keys: [wgpu::Buffer; 2],
     values: [wgpu::Buffer; 2],
     block_count: u32,
+    /// Workgroups of the scan: slices of the histogram's digits.
+    slices: u32,
     histogram: wgpu::Buffer,
     /// The kernel that writes the keys also counts the first pass's digits into `histogram`,
     /// so the sort skips that count.
@@ -54,20 +66,21 @@ impl RadixSort {
         let keys = [0, 1].map(|k| zeroed(context, &format!("sort keys {k}"), pair_bytes, usage));
         let values =
             [0, 1].map(|k| zeroed(context, &format!("sort values {k}"), pair_bytes, usage));
-        // Each digit's count per block, then each digit's total (written by the scan).
+        // Each digit's count per block, then each slice's total (written by the scan).
         let histogram_bytes = 4 * DIGITS * (u64::from(block_count) + 1);
         let histogram = zeroed(context, "sort histogram", histogram_bytes, usage);
         let count_digits =
             compute_pipeline(context, "radix count", super::RADIX_SORT, "count_digits")?;
         let scan = compute_pipeline(context, "radix scan", super::RADIX_SORT, "scan")?;
         let scatter = compute_pipeline(context, "radix scatter", super::RADIX_SORT, "scatter")?;
+        let digits_per_slice = slice_digits(block_count);
         let passes = (0..pass_count)
             .map(|pass| {
                 let uniforms = SortUniforms {
                     count,
                     shift: pass * BITS_PER_PASS,
                     block_count,
-                    pad: 0,
+                    digits_per_slice,
                 };
                 let uniforms = uniform(context, &uniforms);
                 let (from, to) = ((pass % 2) as usize, 1 - (pass % 2) as usize);
@@ -111,6 +124,7 @@ impl RadixSort {
             keys,
             values,
             block_count,
+            slices: DIGITS as u32 / digits_per_slice,
             histogram,
             first_counted,
             count_digits,
@@ -171,8 +185,7 @@ impl RadixSort {
             if index > 0 || !self.first_counted {
                 dispatch_in(pass, &self.count_digits, count_group, block_invocations);
             }
-            // One workgroup per digit.
-            dispatch_in(pass, &self.scan, scan_group, DIGITS as u32 * WORKGROUP_SIZE);
+            dispatch_in(pass, &self.scan, scan_group, self.slices * WORKGROUP_SIZE);
             dispatch_in(pass, &self.scatter, scatter_group, block_invocations);
         }
     }
@@ -243,7 +256,22 @@ mod tests {
         assert_eq!(DIGITS, 1 << BITS_PER_PASS);
         assert_eq!(constant("BLOCK"), BLOCK);
         assert_eq!(constant("ROUNDS") * WORKGROUP_SIZE, BLOCK);
-        // `scatter` gives each invocation the same number of digits' totals to sum.
-        assert_eq!(DIGITS % u64::from(WORKGROUP_SIZE), 0);
+    }
+
+    #[test]
+    fn slices_take_up_to_a_thousand_counts_and_divide_the_digits() {
+        // (blocks, digits per slice): one workgroup for a small sort, one per digit for a
+        // large one, powers of two between.
+        for (blocks, digits) in [(1, 256), (4, 256), (5, 128), (16, 64), (64, 16), (100, 8)] {
+            assert_eq!(slice_digits(blocks), digits, "{blocks} blocks");
+        }
+        for blocks in [1024, 1025, 4096, 100_000] {
+            assert_eq!(slice_digits(blocks), 1, "{blocks} blocks");
+        }
+        for blocks in 1..3000 {
+            let digits = slice_digits(blocks);
+            assert_eq!(DIGITS as u32 % digits, 0);
+            assert!(digits == 1 || digits * blocks <= SLICE_COUNTS);
+        }
     }
 }

@@ -1,7 +1,7 @@
 // One pass of a stable LSD radix sort of (key, value) pairs on 8-bit digits, in three kernels:
 // `count_digits` counts each block's digits, `scan` turns the counts (digit-major, then block)
-// into each block's first slot among its digit's, with each digit's total after them, and
-// `scatter` adds the totals of the digits below and moves every pair to its slot,
+// into prefix sums within slices of digits, with each slice's total after them, and `scatter`
+// adds the totals of the slices below and moves every pair to its slot,
 // ranked within its block by its position so equal digits keep their order. Blocks and the
 // histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
 
@@ -17,6 +17,8 @@ const WORDS: u32 = 2u;
 var<workgroup> members: array<atomic<u32>, 512>;
 // The next output slot of each digit in this block, advanced round by round.
 var<workgroup> next_slot: array<u32, DIGITS>;
+// The first slot of each slice of the histogram's digits.
+var<workgroup> slice_base: array<u32, DIGITS>;
 var<workgroup> partial_sums: array<u32, WORKGROUP_SIZE>;
 
 fn digit_of(key: u32) -> u32 {
@@ -36,39 +38,41 @@ fn count_digits(
     count_block_digits(lane, block_index(group, groups), su.block_count, su.count);
 }
 
-// One workgroup per digit: each invocation sums a contiguous run of the digit's counts (one per
-// block), the run totals are scanned in shared memory, then each run is rewritten as exclusive
-// prefix sums within the digit, and the digit's total goes after the histogram for `scatter`.
-// (One workgroup for the whole histogram ran each invocation over thousands of counts: on a
-// real GPU the self-collision's sorts spent most of their time there.)
+// One workgroup per slice of `digits_per_slice` digits (consecutive in the digit-major
+// histogram): each invocation sums a contiguous run of the slice's counts, the run totals are
+// scanned in shared memory, then each run is rewritten as exclusive prefix sums within the
+// slice, and the slice's total goes after the histogram for `scatter`. Slices keep each
+// invocation's run short on large meshes (one workgroup for the whole histogram took most of
+// the self-collision's time on a real GPU) and the workgroups few on small ones (each pays
+// for its barriers where a software renderer runs invocations in turn).
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scan(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let digit = block_index(group, groups);
+    let slice = block_index(group, groups);
     // Uniform across the workgroup, so the barriers below are reached by every invocation.
-    if digit >= DIGITS {
+    if slice * su.digits_per_slice >= DIGITS {
         return;
     }
-    let base = digit * su.block_count;
-    let run = (su.block_count + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
-    let start = min(lane * run, su.block_count);
-    let end = min(start + run, su.block_count);
+    let length = su.digits_per_slice * su.block_count;
+    let base = slice * length;
+    let run = (length + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
+    let start = min(lane * run, length);
+    let end = min(start + run, length);
     var total = 0u;
     for (var i = start; i < end; i++) {
         total += histogram[base + i];
     }
-    let earlier = exclusive_scan(lane, total);
-    var running = earlier;
+    var running = exclusive_scan(lane, total);
     for (var i = start; i < end; i++) {
         let c = histogram[base + i];
         histogram[base + i] = running;
         running += c;
     }
     if lane == WORKGROUP_SIZE - 1u {
-        histogram[DIGITS * su.block_count + digit] = running;
+        histogram[DIGITS * su.block_count + slice] = running;
     }
 }
 
@@ -104,18 +108,29 @@ fn scatter(
     if block >= su.block_count {
         return;
     }
-    // Each digit's first slot is the totals of the digits below it (after the histogram) plus
-    // the blocks' before this one: each invocation takes a run of consecutive digits.
-    let run = DIGITS / WORKGROUP_SIZE;
+    // Each digit's first slot is its count's prefix within its slice (from `scan`) plus the
+    // totals of the slices before (after the histogram): each invocation takes a run of them.
+    let slices = DIGITS / su.digits_per_slice;
     let totals = DIGITS * su.block_count;
-    var sum = 0u;
-    for (var d = lane * run; d < lane * run + run; d++) {
-        sum += histogram[totals + d];
+    if slices == 1u {
+        slice_base[0] = 0u;
+    } else {
+        let run = (slices + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
+        let start = min(lane * run, slices);
+        let end = min(start + run, slices);
+        var sum = 0u;
+        for (var s = start; s < end; s++) {
+            sum += histogram[totals + s];
+        }
+        var below = exclusive_scan(lane, sum);
+        for (var s = start; s < end; s++) {
+            slice_base[s] = below;
+            below += histogram[totals + s];
+        }
     }
-    var below = exclusive_scan(lane, sum);
-    for (var d = lane * run; d < lane * run + run; d++) {
-        next_slot[d] = below + histogram[d * su.block_count + block];
-        below += histogram[totals + d];
+    workgroupBarrier();
+    for (var d = lane; d < DIGITS; d += WORKGROUP_SIZE) {
+        next_slot[d] = slice_base[d / su.digits_per_slice] + histogram[d * su.block_count + block];
     }
     for (var w = lane; w < DIGITS * WORDS; w += WORKGROUP_SIZE) {
         atomicStore(&members[w], 0u);
