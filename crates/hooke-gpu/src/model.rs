@@ -56,7 +56,7 @@ pub struct GpuModel {
     pub uniforms: StepUniforms,
     /// Two copies of the uniforms, `uniform_slot` bytes apart, differing only in `parity`:
     /// a kernel binds the one for the current position buffer ([`GpuModel::uniforms_binding`]).
-    pub uniform_buffer: wgpu::Buffer,
+    uniform_buffer: wgpu::Buffer,
     uniform_slot: u64,
     /// Per vertex `(dt^2 / m, 1 - c dt / m, stencil mask, 0)`, the first two zero for pinned
     /// vertices (the mask: [`Stencil::mask_as_float`] with a [`GpuTopology::Stencil`], else 0).

@@ -148,7 +148,7 @@ impl GpuSolver {
             GpuMethod::Scatter(accumulation) => {
                 let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
                 let buffers = ScatterBuffers {
-                    uniforms: &gpu_model.uniform_buffer,
+                    model: &gpu_model,
                     springs: gpu_model.springs().ok_or_else(|| {
                         GpuError::Validation("scatter without spring records".into())
                     })?,

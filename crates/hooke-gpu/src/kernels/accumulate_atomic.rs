@@ -37,7 +37,7 @@ impl AccumulateAtomic {
             buffers.spring_count,
             |current| {
                 let mut resources = vec![
-                    (0, buffers.uniforms.as_entire_binding()),
+                    (0, buffers.model.uniforms_binding(current)),
                     (1, buffers.springs.as_entire_binding()),
                     (2, state.positions[current].as_entire_binding()),
                     (3, buffers.forces.as_entire_binding()),

@@ -122,8 +122,10 @@ impl AccumulateBlend {
             context,
             "accumulate blend",
             &pipeline.get_bind_group_layout(0),
+            // One group for both position buffers: the draw reads no step clock, so either
+            // parity's uniforms do.
             &[
-                (0, buffers.uniforms.as_entire_binding()),
+                (0, buffers.model.uniforms_binding(0)),
                 (1, buffers.springs.as_entire_binding()),
                 (2, spring_forces.as_entire_binding()),
             ],
@@ -134,9 +136,9 @@ impl AccumulateBlend {
             super::RESOLVE_BLEND,
             "main",
             n,
-            |_| {
+            |current| {
                 vec![
-                    (0, buffers.uniforms.as_entire_binding()),
+                    (0, buffers.model.uniforms_binding(current)),
                     (1, wgpu::BindingResource::TextureView(&views[0])),
                     (2, wgpu::BindingResource::TextureView(&views[1])),
                     (3, buffers.forces.as_entire_binding()),

@@ -45,9 +45,9 @@ impl AccumulateIncidence {
             super::ACCUMULATE_INCIDENCE,
             "main",
             buffers.vertex_count,
-            |_| {
+            |current| {
                 vec![
-                    (0, buffers.uniforms.as_entire_binding()),
+                    (0, buffers.model.uniforms_binding(current)),
                     (1, spring_forces.as_entire_binding()),
                     (2, offsets_buffer.as_entire_binding()),
                     (3, entries_buffer.as_entire_binding()),

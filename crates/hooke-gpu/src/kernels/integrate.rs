@@ -82,7 +82,7 @@ mod tests {
     #[test]
     fn integrate_takes_the_delta_form_verlet_step_of_the_reference() {
         let Some(context) = context() else { return };
-        let (scene, seen, model, gpu_state) = damped_on_gpu(&context);
+        let (scene, seen, mut model, gpu_state) = damped_on_gpu(&context);
         let n = scene.model.vertex_count();
         // Given forces (the springs' at this state) and extra forces (a point force each).
         let spring = reference_spring_forces(&scene.model, &seen.positions);
@@ -101,11 +101,8 @@ mod tests {
         let (forces, extra_forces) = (upload("forces", &spring), upload("extra", &extra));
         let integrate = Integrate::new(&context, &model, &gpu_state, &forces, &extra_forces, false)
             .expect("kernel");
-        let mut with_extra = model.uniforms;
-        with_extra.has_extra = 1;
-        context
-            .queue
-            .write_buffer(&model.uniform_buffer, 0, bytemuck::bytes_of(&with_extra));
+        model.uniforms.has_extra = 1;
+        model.write_uniforms(&context);
         run(&context, |e| {
             integrate.kernel.encode(e, gpu_state.current, None)
         });

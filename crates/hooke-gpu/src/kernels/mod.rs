@@ -24,8 +24,8 @@ mod testing;
 /// The buffers every scatter accumulation binds.
 #[derive(Debug)]
 pub struct ScatterBuffers<'a> {
-    /// The step uniforms, bound whole: the accumulations read neither parity's fields.
-    pub uniforms: &'a wgpu::Buffer,
+    /// Whose step uniforms the accumulations bind ([`crate::GpuModel::uniforms_binding`]).
+    pub model: &'a crate::GpuModel,
     pub springs: &'a wgpu::Buffer,
     /// The per-vertex sums the accumulation writes.
     pub forces: &'a wgpu::Buffer,

@@ -58,15 +58,13 @@ fn scan(
     }
     let length = su.digits_per_slice * su.block_count;
     let base = slice * length;
-    let run = (length + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
-    let start = min(lane * run, length);
-    let end = min(start + run, length);
+    let run = lane_run(lane, length);
     var total = 0u;
-    for (var i = start; i < end; i++) {
+    for (var i = run.x; i < run.y; i++) {
         total += histogram[base + i];
     }
     var running = exclusive_scan(lane, total);
-    for (var i = start; i < end; i++) {
+    for (var i = run.x; i < run.y; i++) {
         let c = histogram[base + i];
         histogram[base + i] = running;
         running += c;
@@ -74,6 +72,13 @@ fn scan(
     if lane == WORKGROUP_SIZE - 1u {
         histogram[DIGITS * su.block_count + slice] = running;
     }
+}
+
+// The run [x, y) of `length` items that invocation `lane` takes: contiguous, in lane order.
+fn lane_run(lane: u32, length: u32) -> vec2<u32> {
+    let run = (length + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
+    let start = min(lane * run, length);
+    return vec2<u32>(start, min(start + run, length));
 }
 
 // The sum of `value` over the invocations before `lane` (every invocation calls it).
@@ -112,21 +117,15 @@ fn scatter(
     // totals of the slices before (after the histogram): each invocation takes a run of them.
     let slices = DIGITS / su.digits_per_slice;
     let totals = DIGITS * su.block_count;
-    if slices == 1u {
-        slice_base[0] = 0u;
-    } else {
-        let run = (slices + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
-        let start = min(lane * run, slices);
-        let end = min(start + run, slices);
-        var sum = 0u;
-        for (var s = start; s < end; s++) {
-            sum += histogram[totals + s];
-        }
-        var below = exclusive_scan(lane, sum);
-        for (var s = start; s < end; s++) {
-            slice_base[s] = below;
-            below += histogram[totals + s];
-        }
+    let run = lane_run(lane, slices);
+    var sum = 0u;
+    for (var s = run.x; s < run.y; s++) {
+        sum += histogram[totals + s];
+    }
+    var below = exclusive_scan(lane, sum);
+    for (var s = run.x; s < run.y; s++) {
+        slice_base[s] = below;
+        below += histogram[totals + s];
     }
     workgroupBarrier();
     for (var d = lane; d < DIGITS; d += WORKGROUP_SIZE) {

@@ -216,7 +216,7 @@ pub fn accumulated(accumulation: Accumulation) -> Option<(Vec<DVec3>, Vec<DVec3>
     let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
     let forces = zeroed(&context, "forces", vec4s(n), copy);
     let buffers = ScatterBuffers {
-        uniforms: &model.uniform_buffer,
+        model: &model,
         springs: model.springs().expect("spring records"),
         forces: &forces,
         status: &gpu_state.status,

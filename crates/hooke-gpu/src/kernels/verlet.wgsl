@@ -29,13 +29,12 @@ fn integrate_vertex(v: u32, x: vec3<f32>, spring_force: vec3<f32>) {
     let next = select(x, x + delta, free);
     deltas[v] = vec4<f32>(delta, 0.0);
     next_positions[v] = vec4<f32>(next, 1.0);
-    let done = status.steps_done[u.parity];
     if v == 0u {
         // Every step integrates vertex 0 once: it advances the clock the next step reads.
-        status.steps_done[1u - u.parity] = done + 1u;
+        status.steps_done[1u - u.parity] = status.steps_done[u.parity] + 1u;
     }
     if !is_finite3(next) {
-        let step = done + 1u;
+        let step = status.steps_done[u.parity] + 1u;
         // Steps run one after another, so only invocations of the first bad step see
         // `previous >= step` and compete for the lowest vertex.
         let previous = atomicMin(&status.first_bad_step, step);
