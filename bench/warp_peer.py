@@ -37,6 +37,9 @@ import warp as wp
 sys.path.insert(0, str(Path(__file__).parent))
 import workload  # noqa: E402  (beside this script, not a package)
 
+# The workload's gravity over one step, dt^2 g, as a constant the kernels compile in.
+GRAVITY_STEP = wp.constant(wp.vec3(*workload.GRAVITY) * (workload.DT * workload.DT))
+
 
 @wp.func
 def spring_force(near: wp.vec3, far: wp.vec3, k: float, rest: float):
@@ -55,8 +58,7 @@ def integrate(
     force: wp.vec3,
 ):
     s = scale[v]
-    g = wp.vec3(0.0, -9.81, 0.0) * (workload.DT * workload.DT)
-    delta = d[v] * s[1] + force * s[0] + g
+    delta = d[v] * s[1] + force * s[0] + GRAVITY_STEP
     if s[0] <= 0.0:
         delta = wp.vec3(0.0, 0.0, 0.0)
     d[v] = delta
