@@ -2,11 +2,34 @@
 //! balls, and self-collision (`hooke_core::selfcollide`).
 
 use glam::{DVec3, Vec3};
-use hooke_core::{collide, handles};
+use hooke_core::{collide, handles, selfcollide};
 use rayon::prelude::*;
 
 use crate::CpuSolver;
 use crate::layout::LANES;
+use crate::simd::Block;
+
+/// The step's new positions as self-collision reads them: in the solver's numbering, by axis.
+struct NextPoints<'a> {
+    internal: &'a [u32],
+    axes: [&'a [Block]; 3],
+}
+
+impl selfcollide::Points for NextPoints<'_> {
+    fn count(&self) -> usize {
+        self.internal.len()
+    }
+
+    fn place(&self, v: u32) -> u32 {
+        self.internal[v as usize]
+    }
+
+    fn at(&self, place: u32) -> Vec3 {
+        let (block, lane) = (place as usize / LANES, place as usize % LANES);
+        let [x, y, z] = self.axes;
+        Vec3::new(x[block][lane], y[block][lane], z[block][lane])
+    }
+}
 
 impl CpuSolver {
     /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
@@ -15,21 +38,18 @@ impl CpuSolver {
         let Some(config) = self.self_collision else {
             return;
         };
-        let (internal, next) = (&self.numbering.internal, &self.next);
-        let positions = &mut self.self_collision_positions;
-        positions.clear();
-        positions.par_extend(
-            internal
-                .par_iter()
-                .map(|&k| Vec3::from_array(next.get(k as usize))),
-        );
+        let points = NextPoints {
+            internal: &self.numbering.internal,
+            axes: self.next.axes(),
+        };
         let moves = self.self_collider.resolve(
-            positions,
+            &points,
             &self.inverse_masses,
             &self.model.adjacency,
             &config,
         );
         // Only moved vertices are written back; each move shifts the step's motion too.
+        let internal = &self.numbering.internal;
         for (v, c) in moves {
             let k = internal[v as usize] as usize;
             self.next

@@ -152,8 +152,6 @@ pub struct CpuSolver {
     self_collision: Option<SelfCollision>,
     /// Self-collision's sort buffers and culling, kept between steps.
     self_collider: selfcollide::Resolver,
-    /// Scratch of `self_collide`: the new positions in mesh order.
-    self_collision_positions: Vec<Vec3>,
     external: Option<ExternalForces>,
     extra_forces: Soa,
     /// Per-vertex net force, used only by the phase-separated step.
@@ -222,7 +220,6 @@ impl CpuSolver {
             control: Control::default(),
             self_collision: model.collision.self_collision,
             self_collider: selfcollide::Resolver::default(),
-            self_collision_positions: Vec::new(),
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),

@@ -36,9 +36,10 @@
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
 //! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
+use super::Points;
 use crate::Adjacency;
 
 /// Most vertices in one patch (an 8 x 8 block of a grid).
@@ -59,6 +60,10 @@ pub enum Proof {
     /// Nothing (a position is not finite).
     Nothing,
 }
+
+/// A patch's points by axis, `PATCH` slots each; the slots past a short last patch's members
+/// repeat its first, so whole-patch loops need no count and their extremes are unchanged.
+type Frame = [[f32; PATCH]; 3];
 
 /// Patches per subtree below which the hierarchy is searched on the calling thread.
 const PARALLEL_PATCHES: u32 = 64;
@@ -111,8 +116,10 @@ pub struct Culling {
     built_for: (usize, usize),
     /// Every vertex, patch after patch (`PATCH` slots each, the last one shorter).
     members: Vec<u32>,
-    /// `R_i`, in the order of `members`.
-    references: Vec<Vec3>,
+    /// Where the positions' owner keeps each of `members` ([`Points::place`]).
+    places: Vec<u32>,
+    /// `R_i`, a frame per patch.
+    references: Vec<Frame>,
     /// The patch and slot within it of each vertex.
     patch_of: Vec<u32>,
     slot_of: Vec<u8>,
@@ -146,7 +153,7 @@ struct Found {
 
 impl Found {
     /// What a closest unjoined distance shows.
-    fn at(closest: f32, check: &Check) -> Self {
+    fn at<P: ?Sized>(closest: f32, check: &Check<P>) -> Self {
         Self {
             suspect: closest < check.suspect_at,
             contact: closest < check.clear_at,
@@ -155,8 +162,8 @@ impl Found {
 }
 
 /// What one step's check needs besides the culling.
-struct Check<'a> {
-    positions: &'a [Vec3],
+struct Check<'a, P: ?Sized> {
+    points: &'a P,
     adjacency: &'a Adjacency,
     /// The distance plus rounding's margin: a pair at least this far apart is clear.
     clear_at: f32,
@@ -165,11 +172,17 @@ struct Check<'a> {
 }
 
 impl Culling {
-    /// Whether any unjoined pair of `positions` can be closer than `distance` (vertices joined
+    /// Whether any unjoined pair of `points` can be closer than `distance` (vertices joined
     /// by a spring of `adjacency` do not count), and if so, which vertices. Builds itself on
-    /// the first call, and again when the vertex or spring count changes.
-    pub fn prove(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> Proof {
-        let proof = self.check(positions, adjacency, distance);
+    /// the first call, and again when the vertex or spring count changes (the points'
+    /// places are kept: a culling serves one owner's positions).
+    pub fn prove<P: Points + ?Sized>(
+        &mut self,
+        points: &P,
+        adjacency: &Adjacency,
+        distance: f32,
+    ) -> Proof {
+        let proof = self.check(points, adjacency, distance);
         if proof == Proof::Clear {
             self.cleared += 1;
         } else {
@@ -218,14 +231,19 @@ impl Culling {
         }
     }
 
-    fn check(&mut self, positions: &[Vec3], adjacency: &Adjacency, distance: f32) -> Proof {
-        if positions.is_empty() {
+    fn check<P: Points + ?Sized>(
+        &mut self,
+        points: &P,
+        adjacency: &Adjacency,
+        distance: f32,
+    ) -> Proof {
+        if points.count() == 0 {
             return Proof::Clear;
         }
-        if self.built_for != (positions.len(), adjacency.neighbors.len()) {
-            self.build(positions, adjacency);
+        if self.built_for != (points.count(), adjacency.neighbors.len()) {
+            self.build(points, adjacency);
         }
-        let Some(scale) = self.measure_patches(positions, distance) else {
+        let Some(scale) = self.measure_patches(points, distance) else {
             return Proof::Nothing;
         };
         // Rounding: a few units in the last place of the largest coordinate in each quantity
@@ -233,7 +251,7 @@ impl Culling {
         let clear_at = distance * 1.001 + scale * 1e-5;
         (self.margin, self.clear_at) = (MARGIN * distance, clear_at);
         let check = Check {
-            positions,
+            points,
             adjacency,
             clear_at,
             suspect_at: clear_at + self.margin,
@@ -257,10 +275,12 @@ impl Culling {
         Proof::Local
     }
 
-    /// Patches, their near pairs and the hierarchy, for `positions` as they are now.
-    fn build(&mut self, positions: &[Vec3], adjacency: &Adjacency) {
-        let n = positions.len();
-        let (low, high) = bounds(positions);
+    /// Patches, their near pairs and the hierarchy, for `points` as they are now.
+    fn build<P: Points + ?Sized>(&mut self, points: &P, adjacency: &Adjacency) {
+        let n = points.count();
+        let mut positions = Vec::new();
+        points.copy_into(&mut positions);
+        let (low, high) = bounds(&positions);
         let extent = (high - low).max_element().max(f32::MIN_POSITIVE);
         let mut order: Vec<(u64, u32)> = positions
             .iter()
@@ -275,10 +295,11 @@ impl Culling {
             self.patch_of[v as usize] = (slot / PATCH) as u32;
             self.slot_of[v as usize] = (slot % PATCH) as u8;
         }
+        self.places = self.members.iter().map(|&v| points.place(v)).collect();
         self.references = self
-            .members
-            .iter()
-            .map(|&v| positions[v as usize])
+            .places
+            .chunks(PATCH)
+            .map(|places| gather(points, places))
             .collect();
         let count = n.div_ceil(PATCH);
         self.patches = vec![
@@ -359,14 +380,14 @@ impl Culling {
     /// Each patch's centre, spread and box this step, renewing the references of patches
     /// that spread past their slack; then the hierarchy's boxes. Returns the largest
     /// coordinate seen, or `None` if a position is not finite.
-    fn measure_patches(&mut self, positions: &[Vec3], distance: f32) -> Option<f32> {
+    fn measure_patches<P: Points + ?Sized>(&mut self, points: &P, distance: f32) -> Option<f32> {
         let scale = self
             .patches
             .par_iter_mut()
-            .zip(self.references.par_chunks_mut(PATCH))
-            .zip(self.members.par_chunks(PATCH))
-            .map(|((patch, references), members)| {
-                measure_patch(patch, references, members, positions, distance)
+            .zip(self.references.par_iter_mut())
+            .zip(self.places.par_chunks(PATCH))
+            .map(|((patch, references), places)| {
+                measure_patch(patch, references, &gather(points, places), distance)
             })
             .try_reduce(|| 0.0, |a, b| Some(a.max(b)))?;
         for i in (0..self.nodes.len()).rev() {
@@ -388,33 +409,40 @@ impl Culling {
     }
 
     /// Checks every near pair (all of them, so each keeps its cache up to date), flagging the
-    /// patches of suspect ones. Returns whether any is within the distance.
-    fn near_pairs(&mut self, check: &Check) -> bool {
+    /// patches of suspect ones. Returns whether any is within the distance. Each pair renews
+    /// its own cache in parallel; only the few that found something or were measured again
+    /// come back to tell their patches.
+    fn near_pairs<P: Points + ?Sized>(&mut self, check: &Check<P>) -> bool {
+        let mut near = std::mem::take(&mut self.near);
         let this = &*self;
-        let verdicts: Vec<(Found, Option<f32>)> = this
-            .near
-            .par_iter()
-            .map(|pair| this.near_pair(pair, check))
+        let news: Vec<([u32; 2], Found, Option<f32>)> = near
+            .par_iter_mut()
+            .filter_map(|pair| {
+                let (found, measured) = this.near_pair(pair, check);
+                pair.suspect = found.suspect;
+                if let Some(gap) = measured {
+                    let [p, q] = pair.patches;
+                    let (a, b) = (&this.patches[p as usize], &this.patches[q as usize]);
+                    pair.gap = gap;
+                    pair.offset = a.centre - b.centre;
+                    pair.versions = [a.version, b.version];
+                }
+                (found != Found::default() || measured.is_some()).then_some((
+                    pair.patches,
+                    found,
+                    measured,
+                ))
+            })
             .collect();
+        self.near = near;
         let mut contact = false;
-        for (pair, (found, measured)) in self.near.iter_mut().zip(verdicts) {
+        for (patches, found, measured) in news {
             contact |= found.contact;
-            pair.suspect = found.suspect;
-            if found.suspect {
-                for patch in pair.patches {
+            for patch in patches {
+                if found.suspect {
                     self.suspect_patches[patch as usize] = true;
                 }
-            }
-            if let Some(gap) = measured {
-                let [p, q] = pair.patches;
-                let (a, b) = (self.patches[p as usize], self.patches[q as usize]);
-                *pair = NearPair {
-                    gap,
-                    offset: a.centre - b.centre,
-                    versions: [a.version, b.version],
-                    ..*pair
-                };
-                for patch in [p, q] {
+                if let Some(gap) = measured {
                     let patch = &mut self.patches[patch as usize];
                     patch.closest = patch.closest.min(gap);
                 }
@@ -424,7 +452,11 @@ impl Culling {
     }
 
     /// What one near pair shows, and its gap if it had to be measured again.
-    fn near_pair(&self, pair: &NearPair, check: &Check) -> (Found, Option<f32>) {
+    fn near_pair<P: Points + ?Sized>(
+        &self,
+        pair: &NearPair,
+        check: &Check<P>,
+    ) -> (Found, Option<f32>) {
         let [p, q] = pair.patches;
         let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
         if pair.versions == [a.version, b.version] {
@@ -433,13 +465,16 @@ impl Culling {
                 return (Found::default(), None);
             }
         }
-        let current = |slot: usize| check.positions[self.members[slot] as usize];
+        let current = |slot: usize| check.points.at(self.places[slot]);
         if pair.suspect {
             // In contact last step: the placed gap would most likely fail again.
             let closest = self.closest_unjoined(check.adjacency, [p, q], current);
             return (Found::at(closest, check), None);
         }
-        let placed = |slot: usize| self.references[slot] + self.patches[slot / PATCH].centre;
+        let placed = |slot: usize| {
+            point_of(&self.references[slot / PATCH], slot % PATCH)
+                + self.patches[slot / PATCH].centre
+        };
         let gap = self.closest_unjoined(check.adjacency, [p, q], placed);
         if gap - a.spread - b.spread >= check.suspect_at {
             return (Found::default(), Some(gap));
@@ -454,13 +489,18 @@ impl Culling {
     }
 
     /// The suspect pairs of patches that are not near, with what each shows.
-    fn far_pairs(&self, check: &Check) -> Vec<([u32; 2], Found)> {
+    fn far_pairs<P: Points + ?Sized>(&self, check: &Check<P>) -> Vec<([u32; 2], Found)> {
         let mut found = Vec::new();
         self.search_within(0, check, &mut found);
         found
     }
 
-    fn search_within(&self, node: u32, check: &Check, found: &mut Vec<([u32; 2], Found)>) {
+    fn search_within<P: Points + ?Sized>(
+        &self,
+        node: u32,
+        check: &Check<P>,
+        found: &mut Vec<([u32; 2], Found)>,
+    ) {
         let node = &self.nodes[node as usize];
         let Some([a, b]) = node.children else {
             return;
@@ -479,7 +519,13 @@ impl Culling {
         self.search_between(a, b, check, found);
     }
 
-    fn search_between(&self, a: u32, b: u32, check: &Check, found: &mut Vec<([u32; 2], Found)>) {
+    fn search_between<P: Points + ?Sized>(
+        &self,
+        a: u32,
+        b: u32,
+        check: &Check<P>,
+        found: &mut Vec<([u32; 2], Found)>,
+    ) {
         let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
         let gaps = (na.low - nb.high).max(nb.low - na.high);
         if gaps.max_element() >= check.suspect_at {
@@ -490,7 +536,7 @@ impl Culling {
             (None, None) => {
                 let (p, q) = (na.first, nb.first);
                 if !self.near(p, q) {
-                    let current = |slot: usize| check.positions[self.members[slot] as usize];
+                    let current = |slot: usize| check.points.at(self.places[slot]);
                     let closest = self.closest_unjoined(check.adjacency, [p, q], current);
                     let pair = Found::at(closest, check);
                     if pair.suspect {
@@ -587,53 +633,99 @@ impl Culling {
 }
 
 /// One patch's step: see [`Culling::measure_patches`]. Returns its largest coordinate, or
-/// `None` if a position is not finite.
+/// `None` if a position is not finite. Everything runs on whole frames, 8 lanes at a time.
 fn measure_patch(
     patch: &mut Patch,
-    references: &mut [Vec3],
-    members: &[u32],
-    positions: &[Vec3],
+    references: &mut Frame,
+    positions: &Frame,
     distance: f32,
 ) -> Option<f32> {
-    let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-    let (mut moved_low, mut moved_high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-    let (mut finite, mut references_finite, mut scale) = (true, true, 0.0f32);
-    for (&v, &reference) in members.iter().zip(&*references) {
-        let x = positions[v as usize];
-        finite &= x.is_finite();
-        references_finite &= reference.is_finite();
-        (low, high) = (low.min(x), high.max(x));
-        let moved = x - reference;
-        (moved_low, moved_high) = (moved_low.min(moved), moved_high.max(moved));
-        scale = scale.max(reference.abs().max_element());
+    let mut moved: Frame = [[0.0; PATCH]; 3];
+    for ((moved, x), reference) in moved.iter_mut().zip(positions).zip(&*references) {
+        for ((m, x), r) in moved.iter_mut().zip(x).zip(reference) {
+            *m = x - r;
+        }
     }
-    if !finite {
+    let finite = |frame: &Frame| frame.iter().all(|axis| poison(axis) == 0.0);
+    if !finite(positions) {
         return None;
     }
+    let extremes = |frame: &Frame| {
+        let axes = frame.map(|axis| extremes(&axis));
+        let corner = |k: usize| Vec3::from_array(axes.map(|e| e[k]));
+        (corner(0), corner(1))
+    };
+    let (low, high) = extremes(positions);
+    let (moved_low, moved_high) = extremes(&moved);
     let centre = 0.5 * (moved_low + moved_high);
-    let spread = members
-        .iter()
-        .zip(&*references)
-        .map(|(&v, &reference)| (positions[v as usize] - reference - centre).length_squared())
-        .fold(0.0f32, |a, b| if b > a { b } else { a })
-        .sqrt();
+    let spread = farthest_squared(&moved, centre).sqrt();
+    let (reference_low, reference_high) = extremes(references);
+    let scale = reference_low.abs().max(reference_high.abs()).max_element();
     // A quarter of the slack its near pairs had when measured (and a tenth of the distance
     // while none is measured or one is in contact), so a patch renews only when it has bent
-    // or turned enough to matter. (The spread skips NaN: references that are not finite, say
-    // taken from a state that was, are renewed.)
+    // or turned enough to matter. References that are not finite (say, taken from a state
+    // that was not) are renewed.
     let renew_above = (0.25 * (patch.closest - distance)).max(0.1 * distance);
-    if references_finite && spread <= renew_above {
+    if finite(references) && spread <= renew_above {
         (patch.centre, patch.spread) = (centre, spread);
     } else {
-        for (&v, reference) in members.iter().zip(references.iter_mut()) {
-            *reference = positions[v as usize];
-        }
+        *references = *positions;
         (patch.centre, patch.spread) = (Vec3::ZERO, 0.0);
         patch.version = patch.version.wrapping_add(1) % u32::MAX;
         patch.closest = f32::INFINITY;
     }
     (patch.low, patch.high) = (low, high);
     Some(scale.max(low.abs().max(high.abs()).max_element()))
+}
+
+/// The points at `places` (a patch's; at most `PATCH`), the rest of the frame repeating the
+/// first.
+fn gather<P: Points + ?Sized>(points: &P, places: &[u32]) -> Frame {
+    let [mut x, mut y, mut z] = [[0.0; PATCH]; 3];
+    for (k, ((x, y), z)) in x.iter_mut().zip(&mut y).zip(&mut z).enumerate() {
+        let p = points.at(places.get(k).copied().unwrap_or(places[0]));
+        (*x, *y, *z) = (p.x, p.y, p.z);
+    }
+    [x, y, z]
+}
+
+/// Slot `k` of `frame`.
+fn point_of(frame: &Frame, k: usize) -> Vec3 {
+    Vec3::new(frame[0][k], frame[1][k], frame[2][k])
+}
+
+/// A frame axis's values four at a time (glam's `Vec4` is one SSE register; the compiler
+/// turned the same loops over plain arrays into hundreds of shuffles).
+fn quads(values: &[f32; PATCH]) -> impl Iterator<Item = Vec4> + '_ {
+    values.chunks_exact(4).map(Vec4::from_slice)
+}
+
+/// Zero if every value is finite, else NaN (`0 * inf` and `0 * NaN` are NaN).
+fn poison(values: &[f32; PATCH]) -> f32 {
+    quads(values)
+        .fold(Vec4::ZERO, |sum, v| sum + v * 0.0)
+        .element_sum()
+}
+
+/// The smallest and largest of finite `values`.
+fn extremes(values: &[f32; PATCH]) -> [f32; 2] {
+    let (low, high) = quads(values).fold((Vec4::INFINITY, Vec4::NEG_INFINITY), |(low, high), v| {
+        (low.min(v), high.max(v))
+    });
+    [low.min_element(), high.max_element()]
+}
+
+/// The largest squared distance of a frame's points from `centre`.
+fn farthest_squared(frame: &Frame, centre: Vec3) -> f32 {
+    let [x, y, z] = frame;
+    quads(x)
+        .zip(quads(y))
+        .zip(quads(z))
+        .fold(Vec4::ZERO, |farthest, ((x, y), z)| {
+            let d = [x - centre.x, y - centre.y, z - centre.z];
+            farthest.max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        })
+        .max_element()
 }
 
 /// The smaller of two finite floats, in one vector instruction (`f32::min` also handles NaN,
@@ -669,7 +761,7 @@ mod tests {
 
     use super::*;
     use crate::mesh::{GridPlane, grid};
-    use crate::selfcollide::{Resolver, SelfCollision, exact_pairs, resolve};
+    use crate::selfcollide::{Resolver, SelfCollision, apply, exact_pairs, resolve};
 
     /// The springs of the generator's grid, `columns` vertices a row (the scripts place the
     /// vertices themselves).
@@ -767,6 +859,23 @@ mod tests {
             .collect()
     }
 
+    /// Positions stored last vertex first.
+    struct Reversed(Vec<Vec3>);
+
+    impl Points for Reversed {
+        fn count(&self) -> usize {
+            self.0.len()
+        }
+
+        fn place(&self, v: u32) -> u32 {
+            self.0.len() as u32 - 1 - v
+        }
+
+        fn at(&self, place: u32) -> Vec3 {
+            self.0[place as usize]
+        }
+    }
+
     #[test]
     fn culled_steps_give_the_same_moves_as_the_plain_passes() {
         type Script = fn(u32, f32, u32, u32, &mut rand_chacha::ChaCha8Rng) -> Vec<Vec3>;
@@ -810,18 +919,27 @@ mod tests {
                 local_at_most: 1,
                 ..Resolver::default()
             };
+            // Reading the positions from a store in another order, as a solver's numbering
+            // keeps them.
+            let mut stored = Resolver::default();
             let mut moved_steps = 0;
             let mut suspects = Vec::new();
             for t in 0..=steps {
                 let start = script(side, spacing, t, steps, &mut rng);
-                let (mut plain, mut culled, mut local_only) = (start.clone(), start.clone(), start);
+                let (mut plain, mut culled) = (start.clone(), start.clone());
+                let mut local_only = start.clone();
                 let expected = resolve(&mut plain, &weights, &adjacency, &config);
-                let moves = resolver.resolve(&mut culled, &weights, &adjacency, &config);
+                let moves = resolver.resolve(&culled[..], &weights, &adjacency, &config);
                 assert_eq!(moves, expected, "{name}, step {t}");
+                apply(&mut culled, &moves);
                 assert_eq!(culled, plain, "{name}, step {t}");
-                let moves = local.resolve(&mut local_only, &weights, &adjacency, &config);
+                let moves = local.resolve(&local_only[..], &weights, &adjacency, &config);
                 assert_eq!(moves, expected, "{name}, step {t}, local");
+                apply(&mut local_only, &moves);
                 assert_eq!(local_only, plain, "{name}, step {t}, local");
+                let reversed = Reversed(start.into_iter().rev().collect());
+                let moves = stored.resolve(&reversed, &weights, &adjacency, &config);
+                assert_eq!(moves, expected, "{name}, step {t}, stored in reverse");
                 moved_steps += usize::from(!moves.is_empty());
                 suspects.push(resolver.culling().suspects().len());
             }
@@ -902,8 +1020,9 @@ mod tests {
             local_at_most: 1,
             ..Resolver::default()
         };
-        let moves = local.resolve(&mut points, &weights, &adjacency, &config);
+        let moves = local.resolve(&points[..], &weights, &adjacency, &config);
         assert_eq!(moves, expected);
+        apply(&mut points, &moves);
         assert_eq!(points, plain);
         // The case this test is for: lattice points with no twin that the passes moved.
         let bystanders = expected

@@ -20,6 +20,7 @@
 
 mod binning;
 mod culling;
+mod points;
 
 use std::collections::HashMap;
 
@@ -28,6 +29,7 @@ use rayon::prelude::*;
 
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
+pub use points::Points;
 
 use crate::{Adjacency, Model};
 
@@ -261,6 +263,8 @@ const MOST_UNPROVED: u32 = 64;
 pub struct Resolver {
     binning: Binning,
     culling: Culling,
+    /// The step's positions in mesh order, copied only when the passes run.
+    positions: Vec<Vec3>,
     /// The suspect vertices' keys in the current grid.
     suspect_keys: Vec<u32>,
     /// How far each vertex has moved this step (the sum of its moves' lengths), m, and the
@@ -283,6 +287,7 @@ impl Default for Resolver {
         Self {
             binning: Binning::default(),
             culling: Culling::default(),
+            positions: Vec::new(),
             suspect_keys: Vec::new(),
             travelled: Vec::new(),
             movers: Vec::new(),
@@ -305,22 +310,26 @@ impl Resolver {
     /// that has moved further than the culling's margin widens the suspects to every patch it
     /// may have come near. After a proof that left passes to run in full, the next 1, 2, 4 ...
     /// up to 64 steps run the full passes without one.
-    pub fn resolve(
+    ///
+    /// `points` are read where their owner keeps them; only a step whose passes run copies
+    /// them into mesh order. The culling keeps their places ([`Points::place`]), so one
+    /// resolver serves one owner's positions.
+    pub fn resolve<P: Points + ?Sized>(
         &mut self,
-        positions: &mut [Vec3],
+        points: &P,
         weights: &[f32],
         adjacency: &Adjacency,
         config: &SelfCollision,
     ) -> Vec<(u32, Vec3)> {
         let tried = self.unproved == 0;
-        let mut local = if !tried {
+        let local = if !tried {
             self.unproved -= 1;
             self.unproved_steps += 1;
             false
         } else {
             match self
                 .culling
-                .prove(positions, adjacency, config.distance as f32)
+                .prove(points, adjacency, config.distance as f32)
             {
                 Proof::Clear => {
                     self.backoff = 0;
@@ -330,6 +339,23 @@ impl Resolver {
                 Proof::Nothing => false,
             }
         };
+        let mut positions = std::mem::take(&mut self.positions);
+        points.copy_into(&mut positions);
+        let all_moves = self.passes(&mut positions, weights, adjacency, config, tried, local);
+        self.positions = positions;
+        all_moves
+    }
+
+    /// The passes of a step the culling did not clear, on its positions in mesh order.
+    fn passes(
+        &mut self,
+        positions: &mut [Vec3],
+        weights: &[f32],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+        tried: bool,
+        mut local: bool,
+    ) -> Vec<(u32, Vec3)> {
         self.travelled.resize(positions.len(), 0.0);
         let mut all_moves = Vec::new();
         for k in 0..config.grids {

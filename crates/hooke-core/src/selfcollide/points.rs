@@ -1,0 +1,54 @@
+//! Where self-collision reads the step's positions: a slice in mesh order, or a solver's own
+//! layout. The culling's proof reads every position once a step; on most steps it clears
+//! them and nothing else reads them, so a solver that keeps positions in another order or
+//! layout lends them as they are, and they are copied into mesh order only for the passes.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// The positions of a mesh's vertices, by mesh vertex index.
+pub trait Points: Sync {
+    /// How many vertices.
+    fn count(&self) -> usize;
+
+    /// Where vertex `v` is stored: the index [`Points::at`] takes. Fixed for the lifetime of
+    /// the positions' owner, so a reader may keep it.
+    fn place(&self, v: u32) -> u32;
+
+    /// The position stored at `place`.
+    fn at(&self, place: u32) -> Vec3;
+
+    /// Every position in mesh order, into `out` (replacing what it held). In chunks of
+    /// vertices, one task each: `par_extend` over a mapped range took 3.4x as long here
+    /// (0.57 against 0.17 ms for 512^2 on 2 threads).
+    fn copy_into(&self, out: &mut Vec<Vec3>) {
+        const CHUNK: usize = 4096;
+        out.resize(self.count(), Vec3::ZERO);
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (v, point) in (c * CHUNK..).zip(chunk) {
+                    *point = self.at(self.place(v as u32));
+                }
+            });
+    }
+}
+
+impl Points for [Vec3] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn place(&self, v: u32) -> u32 {
+        v
+    }
+
+    fn at(&self, place: u32) -> Vec3 {
+        self[place as usize]
+    }
+
+    fn copy_into(&self, out: &mut Vec<Vec3>) {
+        out.clear();
+        out.extend_from_slice(self);
+    }
+}
