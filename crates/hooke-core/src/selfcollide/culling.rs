@@ -79,6 +79,9 @@ struct Patch {
     version: u32,
     /// The smallest `g_PQ` over its near pairs measured since the references were taken, m.
     closest: f32,
+    /// The references' largest coordinate, m, kept from when they were taken (infinite if one
+    /// is not finite: they are then renewed).
+    reference_scale: f32,
     /// Bounding box of the current positions, m.
     low: Vec3,
     high: Vec3,
@@ -302,17 +305,19 @@ impl Culling {
             .map(|places| gather(points, places))
             .collect();
         let count = n.div_ceil(PATCH);
-        self.patches = vec![
-            Patch {
+        self.patches = self
+            .references
+            .iter()
+            .map(|references| Patch {
                 centre: Vec3::ZERO,
                 spread: 0.0,
                 version: 0,
                 closest: f32::INFINITY,
+                reference_scale: scale_of(references),
                 low: Vec3::ZERO,
                 high: Vec3::ZERO,
-            };
-            count
-        ];
+            })
+            .collect();
         // Near: patches holding a vertex within two springs of one of the patch's.
         let rows: Vec<Vec<u32>> = (0..count)
             .into_par_iter()
@@ -633,7 +638,7 @@ impl Culling {
 }
 
 /// One patch's step: see [`Culling::measure_patches`]. Returns its largest coordinate, or
-/// `None` if a position is not finite. Everything runs on whole frames, 8 lanes at a time.
+/// `None` if a position is not finite. Everything runs on whole frames, 4 lanes at a time.
 fn measure_patch(
     patch: &mut Patch,
     references: &mut Frame,
@@ -646,36 +651,51 @@ fn measure_patch(
             *m = x - r;
         }
     }
-    let finite = |frame: &Frame| frame.iter().all(|axis| poison(axis) == 0.0);
     if !finite(positions) {
         return None;
     }
-    let extremes = |frame: &Frame| {
-        let axes = frame.map(|axis| extremes(&axis));
-        let corner = |k: usize| Vec3::from_array(axes.map(|e| e[k]));
-        (corner(0), corner(1))
-    };
-    let (low, high) = extremes(positions);
-    let (moved_low, moved_high) = extremes(&moved);
+    let (low, high) = corners(positions);
+    let (moved_low, moved_high) = corners(&moved);
     let centre = 0.5 * (moved_low + moved_high);
     let spread = farthest_squared(&moved, centre).sqrt();
-    let (reference_low, reference_high) = extremes(references);
-    let scale = reference_low.abs().max(reference_high.abs()).max_element();
+    let scale = low.abs().max(high.abs()).max_element();
     // A quarter of the slack its near pairs had when measured (and a tenth of the distance
     // while none is measured or one is in contact), so a patch renews only when it has bent
     // or turned enough to matter. References that are not finite (say, taken from a state
     // that was not) are renewed.
     let renew_above = (0.25 * (patch.closest - distance)).max(0.1 * distance);
-    if finite(references) && spread <= renew_above {
+    if patch.reference_scale.is_finite() && spread <= renew_above {
         (patch.centre, patch.spread) = (centre, spread);
     } else {
         *references = *positions;
         (patch.centre, patch.spread) = (Vec3::ZERO, 0.0);
         patch.version = patch.version.wrapping_add(1) % u32::MAX;
         patch.closest = f32::INFINITY;
+        patch.reference_scale = scale;
     }
     (patch.low, patch.high) = (low, high);
-    Some(scale.max(low.abs().max(high.abs()).max_element()))
+    Some(scale.max(patch.reference_scale))
+}
+
+/// Whether every value of `frame` is finite.
+fn finite(frame: &Frame) -> bool {
+    frame.iter().all(|axis| poison(axis) == 0.0)
+}
+
+/// The smallest and largest corners of a finite frame's box.
+fn corners(frame: &Frame) -> (Vec3, Vec3) {
+    let axes = frame.map(|axis| extremes(&axis));
+    let corner = |k: usize| Vec3::from_array(axes.map(|e| e[k]));
+    (corner(0), corner(1))
+}
+
+/// A frame's largest coordinate, m, or infinity if one is not finite.
+fn scale_of(frame: &Frame) -> f32 {
+    if !finite(frame) {
+        return f32::INFINITY;
+    }
+    let (low, high) = corners(frame);
+    low.abs().max(high.abs()).max_element()
 }
 
 /// The points at `places` (a patch's; at most `PATCH`), the rest of the frame repeating the
