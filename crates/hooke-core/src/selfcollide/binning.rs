@@ -13,6 +13,8 @@ use std::marker::PhantomData;
 
 use rayon::prelude::*;
 
+use super::wide::wide;
+
 /// A vertex in sorted order: its key in the high 32 bits, its index in the low 32.
 pub type Entry = u64;
 
@@ -102,10 +104,15 @@ impl Binning {
             .enumerate()
             .for_each(|(c, (entries, counts))| {
                 let start = c * chunks.len;
-                for_each_key(start..start + entries.len(), &keys, |v, k| {
-                    entries[v - start] = (Entry::from(k) << 32) | v as Entry;
-                    counts[(k & mask) as usize] += 1;
-                });
+                wide(
+                    #[inline(always)]
+                    || {
+                        for_each_key(start..start + entries.len(), &keys, |v, k| {
+                            entries[v - start] = (Entry::from(k) << 32) | v as Entry;
+                            counts[(k & mask) as usize] += 1;
+                        })
+                    },
+                );
             });
         for pass in 0..passes {
             let shift = pass * width;
@@ -150,14 +157,19 @@ impl Binning {
             .map(|c| {
                 let mut found = Vec::new();
                 let vertices = c * chunks.len..((c + 1) * chunks.len).min(n);
-                for_each_key(vertices, &keys, |v, key| {
-                    let bit = key & filter_mask;
-                    if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
-                        && wanted.binary_search(&key).is_ok()
-                    {
-                        found.push((Entry::from(key) << 32) | v as Entry);
-                    }
-                });
+                wide(
+                    #[inline(always)]
+                    || {
+                        for_each_key(vertices, &keys, |v, key| {
+                            let bit = key & filter_mask;
+                            if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
+                                && wanted.binary_search(&key).is_ok()
+                            {
+                                found.push((Entry::from(key) << 32) | v as Entry);
+                            }
+                        })
+                    },
+                );
                 found
             })
             .collect();

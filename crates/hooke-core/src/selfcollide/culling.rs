@@ -40,6 +40,7 @@ use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::Points;
+use super::wide::wide;
 use crate::Adjacency;
 
 /// Most vertices in one patch (an 8 x 8 block of a grid).
@@ -473,14 +474,14 @@ impl Culling {
         let current = |slot: usize| check.points.at(self.places[slot]);
         if pair.suspect {
             // In contact last step: the placed gap would most likely fail again.
-            let closest = self.closest_unjoined(check.adjacency, [p, q], current);
+            let closest = self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
             return (Found::at(closest, check), None);
         }
         let placed = |slot: usize| {
             point_of(&self.references[slot / PATCH], slot % PATCH)
                 + self.patches[slot / PATCH].centre
         };
-        let gap = self.closest_unjoined(check.adjacency, [p, q], placed);
+        let gap = self.closest_unjoined(check.adjacency, [p, q], placed, 0.0);
         if gap - a.spread - b.spread >= check.suspect_at {
             return (Found::default(), Some(gap));
         }
@@ -489,7 +490,7 @@ impl Culling {
         if still(a) && still(b) {
             return (Found::at(gap, check), Some(gap));
         }
-        let closest = self.closest_unjoined(check.adjacency, [p, q], current);
+        let closest = self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
         (Found::at(closest, check), Some(gap))
     }
 
@@ -542,7 +543,8 @@ impl Culling {
                 let (p, q) = (na.first, nb.first);
                 if !self.near(p, q) {
                     let current = |slot: usize| check.points.at(self.places[slot]);
-                    let closest = self.closest_unjoined(check.adjacency, [p, q], current);
+                    let closest =
+                        self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
                     let pair = Found::at(closest, check);
                     if pair.suspect {
                         found.push(([p, q], pair));
@@ -582,7 +584,9 @@ impl Culling {
     }
 
     /// The smallest distance between a vertex of patch `p` and one of patch `q` that no spring
-    /// joins (not a vertex and itself), with each vertex at `point(slot)`.
+    /// joins (not a vertex and itself), with each vertex at `point(slot)`; or, as soon as a
+    /// pair closer than `enough` turns up, that pair's distance (a caller that only asks
+    /// whether some pair is that close needs no more).
     ///
     /// `p`'s vertices are taken nearest `q`'s box first, and the search stops at the first
     /// whose distance to the box is no less than the closest pair found: no later one can be
@@ -592,48 +596,64 @@ impl Culling {
         adjacency: &Adjacency,
         [p, q]: [u32; 2],
         point: impl Fn(usize) -> Vec3,
+        enough: f32,
     ) -> f32 {
-        // `q`'s points by axis, unused slots far away, so each row below is a plain loop.
-        let mut others = [[f32::INFINITY; PATCH]; 3];
-        let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for (k, slot) in self.slots(q).enumerate() {
-            let x = point(slot);
-            (others[0][k], others[1][k], others[2][k]) = (x.x, x.y, x.z);
-            (low, high) = (low.min(x), high.max(x));
-        }
-        // `p`'s slots with their squared distance to the box (on the stack: this runs
-        // thousands of times a step in contact).
-        let mut rows = [(0.0f32, 0usize, Vec3::ZERO); PATCH];
-        let slots = self.slots(p);
-        let rows = &mut rows[..slots.len()];
-        for (row, slot) in rows.iter_mut().zip(slots) {
-            let x = point(slot);
-            let outside = (low - x).max(x - high).max(Vec3::ZERO);
-            *row = (outside.length_squared(), slot, x);
-        }
-        rows.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        let mut closest = f32::INFINITY;
-        for &(to_box, slot, x) in &*rows {
-            if to_box >= closest {
-                break;
-            }
-            let mut squared = [0.0f32; PATCH];
-            for (k, s) in squared.iter_mut().enumerate() {
-                let d = [others[0][k] - x.x, others[1][k] - x.y, others[2][k] - x.z];
-                *s = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            }
-            let v = self.members[slot];
-            if p == q {
-                squared[slot % PATCH] = f32::INFINITY;
-            }
-            for &w in adjacency.neighbors_of(v) {
-                if self.patch_of[w as usize] == q {
-                    squared[self.slot_of[w as usize] as usize] = f32::INFINITY;
+        // Compiled for AVX2 where there is one: the rows below are 64 lanes wide.
+        wide(
+            #[inline(always)]
+            || {
+                // `q`'s points by axis, unused slots far away, so each row below is a plain
+                // loop.
+                let mut others = [[f32::INFINITY; PATCH]; 3];
+                let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+                for (k, slot) in self.slots(q).enumerate() {
+                    let x = point(slot);
+                    (others[0][k], others[1][k], others[2][k]) = (x.x, x.y, x.z);
+                    (low, high) = (low.min(x), high.max(x));
                 }
-            }
-            closest = squared.iter().fold(closest, |a, &b| smaller(a, b));
-        }
-        closest.sqrt()
+                // `p`'s points, and an order of them by squared distance to the box: the
+                // distance's bits above the point's index, integers that sort with plain
+                // comparisons and 8-byte moves (a squared length is never negative, not even
+                // -0, so its bits order as it does). On the stack: this runs thousands of
+                // times a step in contact.
+                let slots = self.slots(p);
+                let first = slots.start;
+                let mut points = [Vec3::ZERO; PATCH];
+                let mut order = [0u64; PATCH];
+                let order = &mut order[..slots.len()];
+                for ((k, x), key) in points.iter_mut().enumerate().zip(order.iter_mut()) {
+                    *x = point(first + k);
+                    let outside = (low - *x).max(*x - high).max(Vec3::ZERO);
+                    *key = (u64::from(outside.length_squared().to_bits()) << 32) | k as u64;
+                }
+                order.sort_unstable();
+                let enough = enough * enough;
+                let mut closest = f32::INFINITY;
+                for &key in &*order {
+                    let (to_box, k) = (f32::from_bits((key >> 32) as u32), key as u32 as usize);
+                    if to_box >= closest || closest < enough {
+                        break;
+                    }
+                    let x = points[k];
+                    let mut squared = [0.0f32; PATCH];
+                    for (j, s) in squared.iter_mut().enumerate() {
+                        let d = [others[0][j] - x.x, others[1][j] - x.y, others[2][j] - x.z];
+                        *s = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    }
+                    let v = self.members[first + k];
+                    if p == q {
+                        squared[k] = f32::INFINITY;
+                    }
+                    for &w in adjacency.neighbors_of(v) {
+                        if self.patch_of[w as usize] == q {
+                            squared[self.slot_of[w as usize] as usize] = f32::INFINITY;
+                        }
+                    }
+                    closest = squared.iter().fold(closest, |a, &b| smaller(a, b));
+                }
+                closest.sqrt()
+            },
+        )
     }
 }
 

@@ -21,6 +21,7 @@
 mod binning;
 mod culling;
 mod points;
+mod wide;
 
 use std::collections::HashMap;
 
@@ -88,6 +89,7 @@ pub fn key_bits(vertices: usize) -> u32 {
 }
 
 /// The cell of `p` in a grid of cells `1 / inverse_cell` wide shifted by `offset` cells.
+#[inline(always)]
 pub fn cell_of(p: Vec3, inverse_cell: f32, offset: f32) -> IVec3 {
     let x = p * inverse_cell + Vec3::splat(offset);
     IVec3::new(floor(x.x), floor(x.y), floor(x.z))
@@ -110,6 +112,7 @@ fn floor(x: f32) -> i32 {
 }
 
 /// The sort key of `cell`: its coordinates hashed into `bits` bits.
+#[inline(always)]
 pub fn cell_key(cell: IVec3, bits: u32) -> u32 {
     let hash = (cell.x as u32).wrapping_mul(73_856_093)
         ^ (cell.y as u32).wrapping_mul(19_349_663)
@@ -161,11 +164,13 @@ impl GridKeys {
         }
     }
 
+    #[inline(always)]
     fn of(&self, p: Vec3) -> u32 {
         cell_key(cell_of(p, self.inverse_cell, self.offset), self.bits)
     }
 
     /// The keys of `points`' first `out.len()`, in a loop the compiler vectorises.
+    #[inline(always)]
     fn batch(&self, points: &[Vec3], out: &mut [u32]) {
         for (key, &p) in out.iter_mut().zip(points) {
             *key = self.of(p);
@@ -777,6 +782,40 @@ mod tests {
         assert_eq!(floor(f32::NAN), -2_000_000_000);
         assert_eq!(floor(f32::INFINITY), 2_000_000_000);
         assert_eq!(floor(-3e9), -2_000_000_000);
+    }
+
+    #[test]
+    fn keys_are_the_same_bits_with_avx2_as_without() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let mut points: Vec<Vec3> = (0..10_000)
+            .map(|_| Vec3::from_array(std::array::from_fn(|_| rng.random_range(-50.0..50.0))))
+            .collect();
+        // Cell faces, far out, and not finite.
+        points.extend([
+            Vec3::ZERO,
+            Vec3::splat(-0.0),
+            Vec3::new(0.02, -0.02, 0.04),
+            Vec3::splat(3e9),
+            Vec3::new(f32::NAN, f32::INFINITY, f32::NEG_INFINITY),
+        ]);
+        let config = SelfCollision {
+            distance: 0.01,
+            cell_size: 0.02,
+            grids: 4,
+            window: 4,
+        };
+        for k in 0..config.grids {
+            let keys = GridKeys::new(points.len(), &config, k);
+            let mut plain = vec![0; points.len()];
+            keys.batch(&points, &mut plain);
+            let mut widened = vec![0; points.len()];
+            wide::wide(
+                #[inline(always)]
+                || keys.batch(&points, &mut widened),
+            );
+            assert_eq!(plain, widened, "grid {k}");
+            assert_eq!(plain[0], keys.of(points[0]));
+        }
     }
 
     #[test]
