@@ -10,6 +10,8 @@ use crate::layout::LANES;
 use crate::simd::Block;
 
 /// The step's new positions as self-collision reads them: in the solver's numbering, by axis.
+/// The axes are sliced once here, not per point as `Lanes::get` does: the proof reads every
+/// vertex each step.
 struct NextPoints<'a> {
     internal: &'a [u32],
     axes: [&'a [Block]; 3],

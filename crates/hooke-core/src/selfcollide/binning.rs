@@ -104,15 +104,10 @@ impl Binning {
             .enumerate()
             .for_each(|(c, (entries, counts))| {
                 let start = c * chunks.len;
-                wide(
-                    #[inline(always)]
-                    || {
-                        for_each_key(start..start + entries.len(), &keys, |v, k| {
-                            entries[v - start] = (Entry::from(k) << 32) | v as Entry;
-                            counts[(k & mask) as usize] += 1;
-                        })
-                    },
-                );
+                for_each_key(start..start + entries.len(), &keys, |v, k| {
+                    entries[v - start] = (Entry::from(k) << 32) | v as Entry;
+                    counts[(k & mask) as usize] += 1;
+                });
             });
         for pass in 0..passes {
             let shift = pass * width;
@@ -157,19 +152,14 @@ impl Binning {
             .map(|c| {
                 let mut found = Vec::new();
                 let vertices = c * chunks.len..((c + 1) * chunks.len).min(n);
-                wide(
-                    #[inline(always)]
-                    || {
-                        for_each_key(vertices, &keys, |v, key| {
-                            let bit = key & filter_mask;
-                            if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
-                                && wanted.binary_search(&key).is_ok()
-                            {
-                                found.push((Entry::from(key) << 32) | v as Entry);
-                            }
-                        })
-                    },
-                );
+                for_each_key(vertices, &keys, |v, key| {
+                    let bit = key & filter_mask;
+                    if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
+                        && wanted.binary_search(&key).is_ok()
+                    {
+                        found.push((Entry::from(key) << 32) | v as Entry);
+                    }
+                });
                 found
             })
             .collect();
@@ -193,21 +183,27 @@ impl Binning {
 }
 
 /// Calls `each(vertex, key)` for `vertices` in order, their keys written by `keys` a batch at
-/// a time (see [`KEY_BATCH`]).
+/// a time (see [`KEY_BATCH`]), compiled for AVX2 where the CPU has it (see [`wide`]: every
+/// sort keys all vertices, and `keys` and `each` are inlined into the loop).
 #[inline(always)]
 fn for_each_key(
     vertices: std::ops::Range<usize>,
     keys: &impl Fn(usize, &mut [u32]),
     mut each: impl FnMut(usize, u32),
 ) {
-    let mut batch = [0u32; KEY_BATCH];
-    for first in vertices.clone().step_by(KEY_BATCH) {
-        let batch = &mut batch[..KEY_BATCH.min(vertices.end - first)];
-        keys(first, batch);
-        for (i, &key) in batch.iter().enumerate() {
-            each(first + i, key);
-        }
-    }
+    wide(
+        #[inline(always)]
+        || {
+            let mut batch = [0u32; KEY_BATCH];
+            for first in vertices.clone().step_by(KEY_BATCH) {
+                let batch = &mut batch[..KEY_BATCH.min(vertices.end - first)];
+                keys(first, batch);
+                for (i, &key) in batch.iter().enumerate() {
+                    each(first + i, key);
+                }
+            }
+        },
+    );
 }
 
 /// Each chunk's histogram of the digit at `shift`.
