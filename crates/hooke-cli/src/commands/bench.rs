@@ -29,7 +29,7 @@ use hooke_core::selfcollide::{self, SelfCollision};
 use hooke_core::{PhaseTimes, SimError, TimingSource};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, Method};
-use hooke_gpu::{GpuError, GpuMethod};
+use hooke_gpu::{Accumulation, GpuError, GpuMethod};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -63,6 +63,10 @@ pub struct BenchArgs {
     /// CPU methods to run.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [MethodArg::Gather, MethodArg::Scatter])]
     pub methods: Vec<MethodArg>,
+    /// GPU methods to run (default: every one): gather, or a scatter accumulation by its name
+    /// (atomic-f32, atomic-fixed, incidence, blend-r32f, blend-r16f, blend-rgba8).
+    #[arg(long, value_delimiter = ',', value_parser = parse_gpu_method)]
+    pub gpu_methods: Option<Vec<GpuMethod>>,
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -90,6 +94,17 @@ pub struct BenchArgs {
     pub rounds: u32,
     #[arg(long, value_enum, default_value_t = OutputFormat::Table)]
     pub format: OutputFormat,
+}
+
+/// A GPU method by the name `hooke bench` prints (`gather`, `scatter/incidence`) or by its
+/// accumulation's alone (`incidence`).
+fn parse_gpu_method(name: &str) -> Result<GpuMethod, String> {
+    GpuMethod::from_name(name)
+        .or_else(|| Accumulation::from_name(name).map(GpuMethod::Scatter))
+        .ok_or_else(|| {
+            let names: Vec<String> = GpuMethod::all().into_iter().map(GpuMethod::name).collect();
+            format!("no GPU method {name:?}; one of {}", names.join(", "))
+        })
 }
 
 #[derive(Debug, Serialize)]
@@ -190,9 +205,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             Some(_) => format!("{name} + bending"),
             None => name,
         };
+        let gpu_methods = args.gpu_methods.clone().unwrap_or_else(GpuMethod::all);
         let gpu_choices = gpu
             .iter()
-            .flat_map(|_| GpuMethod::all().into_iter().map(SolverChoice::Gpu));
+            .flat_map(|_| gpu_methods.iter().copied().map(SolverChoice::Gpu));
         let cpu_choices = args.methods.iter().filter(|_| run_cpu).map(|method| {
             SolverChoice::Cpu(CpuOptions {
                 method: (*method).into(),
