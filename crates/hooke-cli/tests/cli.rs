@@ -864,6 +864,59 @@ fn selfcollision_study_prints_missed_pairs_and_cost() {
 }
 
 #[test]
+fn gpu_bench_runs_the_gpu_methods_named_and_counts_the_self_collision_passes() {
+    if !gpu_available() {
+        return;
+    }
+    let result = hooke(&[
+        "bench",
+        "--backend",
+        "gpu",
+        "--gpu-methods",
+        "gather,incidence",
+        "--sizes",
+        "32",
+        "--irregular",
+        "0",
+        "--shuffled",
+        "0",
+        "--self-collision",
+        "2",
+        "--steps",
+        "5",
+        "--warmup",
+        "2",
+        "--format",
+        "json",
+    ]);
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let rows = report["rows"].as_array().expect("rows");
+    let methods: Vec<&str> = rows.iter().filter_map(|r| r["method"].as_str()).collect();
+    assert_eq!(methods, ["gather", "scatter/incidence"]);
+    // 1024 vertices have 16-bit cell keys: per grid, the keys (which count the sort's first
+    // digits), two sort passes of a scan and a scatter (which counts the next pass's digits),
+    // and the corrections; then the last grid's are applied. Gather adds its one pass.
+    assert_eq!(
+        rows[0]["dispatches_per_step"].as_u64(),
+        Some(1 + 2 * (1 + 2 * 2 + 1) + 1)
+    );
+    let refused = hooke(&[
+        "bench",
+        "--backend",
+        "gpu",
+        "--gpu-methods",
+        "gather,atomic",
+    ]);
+    assert!(!refused.status.success());
+    let message = text(&refused.stderr);
+    assert!(
+        message.contains("no GPU method \"atomic\"") && message.contains("scatter/incidence"),
+        "{message}"
+    );
+}
+
+#[test]
 fn bench_shows_the_collision_phase_with_self_collision() {
     let result = hooke(&[
         "bench",

@@ -150,9 +150,11 @@ pub struct SortUniforms {
     /// The pass sorts on bits `shift..shift + 8` of the key.
     pub shift: u32,
     pub block_count: u32,
-    /// Digits per slice of the histogram that one workgroup of the scan takes (a power of
-    /// two: few blocks, many digits per slice; see `radix_sort::slice_digits`).
-    pub digits_per_slice: u32,
+    /// Counts per slice of the histogram that one workgroup of the scan takes (see
+    /// `radix_sort::slice_length`).
+    pub slice_length: u32,
+    /// 1 when another pass follows, whose digits this pass's scatter counts.
+    pub counts_next: u32,
 }
 
 /// One self-collision grid's constants (`SelfUniforms` in `self_collide.wgsl`).
@@ -250,7 +252,7 @@ mod tests {
         assert_eq!(size as usize, size_of::<GpuStatus>());
         let (size, offsets) = layout_in(crate::kernels::RADIX_SORT, "SortUniforms");
         assert_eq!(size as usize, size_of::<SortUniforms>());
-        assert_eq!(offsets, [0, 4, 8, 12]);
+        assert_eq!(offsets, [0, 4, 8, 12, 16]);
         let (size, offsets) = layout_in(crate::kernels::SELF_COLLIDE, "SelfUniforms");
         assert_eq!(size as usize, size_of::<SelfUniforms>());
         assert_eq!(offsets, [0, 4, 8, 12, 16, 20, 24, 28]);

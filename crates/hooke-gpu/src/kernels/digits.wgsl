@@ -4,6 +4,8 @@
 // block) has a quarter as many entries as pairs, whatever the digit width.
 
 const DIGITS: u32 = 256u;
+// log2(DIGITS): a pass's digit is the key's next BITS_PER_PASS bits.
+const BITS_PER_PASS: u32 = 8u;
 const ROUNDS: u32 = 16u;
 // Equals `radix_sort::BLOCK` in Rust (checked by a test), which sizes the histogram.
 const BLOCK: u32 = 1024u;
@@ -13,8 +15,10 @@ struct SortUniforms {
     // The digit of a key is (key >> shift) & (DIGITS - 1).
     shift: u32,
     block_count: u32,
-    // Digits per slice of the histogram scanned by one workgroup (a power of two).
-    digits_per_slice: u32,
+    // Counts per slice of the histogram scanned by one workgroup.
+    slice_length: u32,
+    // 1 when another pass follows: `scatter` counts its digits into `next_histogram`.
+    counts_next: u32,
 }
 
 // DIGITS counts per block, digit-major: entry digit * block_count + block. After `scan`, each

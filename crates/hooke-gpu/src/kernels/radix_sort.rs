@@ -1,10 +1,13 @@
 //! A stable LSD radix sort of `(u32 key, u32 value)` pairs on the GPU (`radix_sort.wgsl`), the
-//! "GPU sorter" of the paper's self-collision binning. Each pass sorts on 8 key bits with
-//! three kernels (count digits per block, scan, scatter); the pairs go back and forth between
-//! two buffer pairs, so the result is in the input's pair after an even number of passes and
-//! in the other after an odd one. A block is [`BLOCK`] pairs, one workgroup's: the histogram
-//! holds a quarter as many counts as pairs, scanned in slices of digits (one workgroup each,
-//! [`SLICE_COUNTS`] counts at most unless a digit has more), and then each slice's total.
+//! "GPU sorter" of the paper's self-collision binning. Each pass sorts on 8 key bits with two
+//! kernels (scan the digit counts per block, scatter); the first pass's digits are counted by
+//! a third kernel (or by the caller's kernel that writes the keys), and each later pass's by
+//! the scatter before it, into the other of two histograms. The pairs (one `vec2<u32>` each)
+//! go back and forth between two buffers, so the result is in the input's buffer after an even
+//! number of passes and in the other after an odd one. A block is [`BLOCK`] pairs, one workgroup's: a
+//! histogram holds a quarter as many counts as pairs, scanned in slices of digits (one
+//! workgroup each, [`SLICE_COUNTS`] counts at most unless a digit has more), and then each
+//! slice's total.
 
 use crate::GpuError;
 use crate::context::GpuContext;
@@ -17,35 +20,43 @@ const BITS_PER_PASS: u32 = 8;
 const DIGITS: u64 = 256;
 /// Pairs per block (`BLOCK` in `digits.wgsl`).
 pub const BLOCK: u32 = 1024;
-/// Counts one workgroup of the scan takes at most, unless a digit alone has more: 16 per
-/// invocation.
+/// Counts one workgroup of the scan takes, unless the histogram is larger than
+/// [`MAX_SLICES`] such slices: `SCAN_TILE` in `radix_sort.wgsl`, 16 per invocation.
 const SLICE_COUNTS: u32 = 1024;
+/// Slices of the histogram at most: every scatter workgroup scans all their totals in
+/// workgroup memory (`MAX_SLICES` in `radix_sort.wgsl`, 8 KiB).
+pub const MAX_SLICES: u32 = 2048;
 
-/// Digits per slice of the histogram that one scan workgroup takes: as many as fit in
-/// [`SLICE_COUNTS`], a power of two from 1 (a slice per digit) to all 256 (one workgroup).
-fn slice_digits(block_count: u32) -> u32 {
-    let fitting = (SLICE_COUNTS / block_count.max(1)).clamp(1, DIGITS as u32);
-    1 << fitting.ilog2()
+/// Counts per slice of the histogram of `block_count` blocks that one scan workgroup takes:
+/// [`SLICE_COUNTS`], or more where that would make more than `max_slices` slices (from
+/// 8192 blocks, 8 million pairs, with [`MAX_SLICES`]).
+fn slice_length(block_count: u32, max_slices: u32) -> u32 {
+    (DIGITS as u32 * block_count)
+        .div_ceil(max_slices)
+        .max(SLICE_COUNTS)
 }
 
 /// Buffers and recorded bind groups to sort `count` pairs on their low `key_bits` bits.
 #[derive(Debug)]
 pub struct RadixSort {
-    /// Input: `keys[0]`, `values[0]`; output: `[passes % 2]`.
-    keys: [wgpu::Buffer; 2],
-    values: [wgpu::Buffer; 2],
+    /// (key, value) pairs. Input: `pairs[0]`; output: `pairs[passes % 2]`.
+    pairs: [wgpu::Buffer; 2],
     block_count: u32,
-    /// Workgroups of the scan: slices of the histogram's digits.
+    /// Workgroups of the scan: slices of the histogram.
     slices: u32,
-    histogram: wgpu::Buffer,
-    /// The kernel that writes the keys also counts the first pass's digits into `histogram`,
-    /// so the sort skips that count.
+    /// Pass `p` scans `histograms[p % 2]`; its scatter counts pass `p + 1`'s digits into the
+    /// other.
+    histograms: [wgpu::Buffer; 2],
+    /// The kernel that writes the keys also counts the first pass's digits into
+    /// `histograms[0]`, so the sort skips that count.
     first_counted: bool,
     count_digits: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
-    /// Per pass: (count-digits group, scan group, scatter group).
-    passes: Vec<[wgpu::BindGroup; 3]>,
+    /// The first pass's count-digits group.
+    first_count: wgpu::BindGroup,
+    /// Per pass: (scan group, scatter group).
+    passes: Vec<[wgpu::BindGroup; 2]>,
     bytes: u64,
 }
 
@@ -59,42 +70,70 @@ impl RadixSort {
         key_bits: u32,
         first_counted: bool,
     ) -> Result<Self, GpuError> {
+        Self::with_max_slices(context, count, key_bits, first_counted, MAX_SLICES)
+    }
+
+    /// [`RadixSort::new`] with the histogram in at most `max_slices` slices (tests take fewer
+    /// than [`MAX_SLICES`] to make slices of several tiles on few pairs).
+    fn with_max_slices(
+        context: &GpuContext,
+        count: u32,
+        key_bits: u32,
+        first_counted: bool,
+        max_slices: u32,
+    ) -> Result<Self, GpuError> {
         let pass_count = key_bits.div_ceil(BITS_PER_PASS).max(1);
         let block_count = count.div_ceil(BLOCK).max(1);
         let usage = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let pair_bytes = 4 * u64::from(count);
-        let keys = [0, 1].map(|k| zeroed(context, &format!("sort keys {k}"), pair_bytes, usage));
-        let values =
-            [0, 1].map(|k| zeroed(context, &format!("sort values {k}"), pair_bytes, usage));
+        let pair_bytes = 8 * u64::from(count);
+        let pairs = [0, 1].map(|k| zeroed(context, &format!("sort pairs {k}"), pair_bytes, usage));
+        let slice_length = slice_length(block_count, max_slices.min(MAX_SLICES));
+        let slices = (DIGITS as u32 * block_count).div_ceil(slice_length);
         // Each digit's count per block, then each slice's total (written by the scan).
-        let histogram_bytes = 4 * DIGITS * (u64::from(block_count) + 1);
-        let histogram = zeroed(context, "sort histogram", histogram_bytes, usage);
+        let histogram_bytes = 4 * (DIGITS * u64::from(block_count) + u64::from(slices));
+        let histograms = [0, 1].map(|k| {
+            zeroed(
+                context,
+                &format!("sort histogram {k}"),
+                histogram_bytes,
+                usage,
+            )
+        });
         let count_digits =
             compute_pipeline(context, "radix count", super::RADIX_SORT, "count_digits")?;
         let scan = compute_pipeline(context, "radix scan", super::RADIX_SORT, "scan")?;
         let scatter = compute_pipeline(context, "radix scatter", super::RADIX_SORT, "scatter")?;
-        let digits_per_slice = slice_digits(block_count);
-        let passes = (0..pass_count)
+        let uniforms: Vec<wgpu::Buffer> = (0..pass_count)
             .map(|pass| {
-                let uniforms = SortUniforms {
-                    count,
-                    shift: pass * BITS_PER_PASS,
-                    block_count,
-                    digits_per_slice,
-                };
-                let uniforms = uniform(context, &uniforms);
-                let (from, to) = ((pass % 2) as usize, 1 - (pass % 2) as usize);
+                uniform(
+                    context,
+                    &SortUniforms {
+                        count,
+                        shift: pass * BITS_PER_PASS,
+                        block_count,
+                        slice_length,
+                        counts_next: u32::from(pass + 1 < pass_count),
+                    },
+                )
+            })
+            .collect();
+        let first_count = bind_group(
+            context,
+            "radix count",
+            &count_digits.get_bind_group_layout(0),
+            &[
+                (0, uniforms[0].as_entire_binding()),
+                (1, pairs[0].as_entire_binding()),
+                (10, histograms[0].as_entire_binding()),
+            ],
+        );
+        let passes = uniforms
+            .iter()
+            .enumerate()
+            .map(|(pass, uniforms)| {
+                let (from, to) = (pass % 2, 1 - pass % 2);
+                let (histogram, next) = (&histograms[from], &histograms[to]);
                 [
-                    bind_group(
-                        context,
-                        "radix count",
-                        &count_digits.get_bind_group_layout(0),
-                        &[
-                            (0, uniforms.as_entire_binding()),
-                            (1, keys[from].as_entire_binding()),
-                            (10, histogram.as_entire_binding()),
-                        ],
-                    ),
                     bind_group(
                         context,
                         "radix scan",
@@ -102,6 +141,7 @@ impl RadixSort {
                         &[
                             (0, uniforms.as_entire_binding()),
                             (10, histogram.as_entire_binding()),
+                            (11, next.as_entire_binding()),
                         ],
                     ),
                     bind_group(
@@ -110,55 +150,44 @@ impl RadixSort {
                         &scatter.get_bind_group_layout(0),
                         &[
                             (0, uniforms.as_entire_binding()),
-                            (1, keys[from].as_entire_binding()),
-                            (2, values[from].as_entire_binding()),
-                            (3, keys[to].as_entire_binding()),
-                            (4, values[to].as_entire_binding()),
+                            (1, pairs[from].as_entire_binding()),
+                            (3, pairs[to].as_entire_binding()),
                             (10, histogram.as_entire_binding()),
+                            (11, next.as_entire_binding()),
                         ],
                     ),
                 ]
             })
             .collect();
         Ok(Self {
-            keys,
-            values,
+            pairs,
             block_count,
-            slices: DIGITS as u32 / digits_per_slice,
-            histogram,
+            slices,
+            histograms,
             first_counted,
             count_digits,
             scan,
             scatter,
+            first_count,
             passes,
-            bytes: 4 * pair_bytes + histogram_bytes,
+            bytes: 2 * pair_bytes + 2 * histogram_bytes,
         })
     }
 
-    /// Where the keys to sort go.
-    pub fn keys(&self) -> &wgpu::Buffer {
-        &self.keys[0]
+    /// Where the (key, value) pairs to sort go, a `vec2<u32>` each.
+    pub fn pairs(&self) -> &wgpu::Buffer {
+        &self.pairs[0]
     }
 
-    /// Where the values go.
-    pub fn values(&self) -> &wgpu::Buffer {
-        &self.values[0]
+    /// Where the pairs are in key order afterwards.
+    pub fn sorted_pairs(&self) -> &wgpu::Buffer {
+        &self.pairs[self.passes.len() % 2]
     }
 
-    /// Where the sorted keys are afterwards.
-    pub fn sorted_keys(&self) -> &wgpu::Buffer {
-        &self.keys[self.passes.len() % 2]
-    }
-
-    /// Where the values are in key order afterwards.
-    pub fn sorted_values(&self) -> &wgpu::Buffer {
-        &self.values[self.passes.len() % 2]
-    }
-
-    /// The digit counts per block (`histogram` in `digits.wgsl`, binding 10), for a kernel
-    /// that writes the keys and counts the first pass's digits itself.
+    /// The first pass's digit counts per block (`histogram` in `digits.wgsl`, binding 10), for
+    /// a kernel that writes the keys and counts those digits itself.
     pub fn histogram(&self) -> &wgpu::Buffer {
-        &self.histogram
+        &self.histograms[0]
     }
 
     /// Blocks of [`BLOCK`] pairs.
@@ -171,20 +200,25 @@ impl RadixSort {
         self.bytes
     }
 
-    /// Dispatches the sort records: count, scan and scatter per digit, less the first count
-    /// when the caller's kernel counts it.
+    /// Dispatches the sort records: scan and scatter per digit, and the first count unless
+    /// the caller's kernel counts it.
     pub fn dispatches(&self) -> u32 {
-        3 * self.passes.len() as u32 - u32::from(self.first_counted)
+        2 * self.passes.len() as u32 + u32::from(!self.first_counted)
     }
 
     /// Records the sort into an open compute pass.
     pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
         // One workgroup per block.
         let block_invocations = self.block_count * WORKGROUP_SIZE;
-        for (index, [count_group, scan_group, scatter_group]) in self.passes.iter().enumerate() {
-            if index > 0 || !self.first_counted {
-                dispatch_in(pass, &self.count_digits, count_group, block_invocations);
-            }
+        if !self.first_counted {
+            dispatch_in(
+                pass,
+                &self.count_digits,
+                &self.first_count,
+                block_invocations,
+            );
+        }
+        for [scan_group, scatter_group] in &self.passes {
             dispatch_in(pass, &self.scan, scan_group, self.slices * WORKGROUP_SIZE);
             dispatch_in(pass, &self.scatter, scatter_group, block_invocations);
         }
@@ -197,14 +231,17 @@ impl RadixSort {
         keys: &[u32],
         key_bits: u32,
     ) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
-        let sorter = Self::new(context, keys.len() as u32, key_bits, false)?;
-        let indices: Vec<u32> = (0..keys.len() as u32).collect();
+        Self::new(context, keys.len() as u32, key_bits, false)?.sort(context, keys)
+    }
+
+    /// Sorts `keys` (as many as the sorter was made for) with their indices as values, and
+    /// reads both back.
+    fn sort(&self, context: &GpuContext, keys: &[u32]) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
+        let sorter = self;
+        let pairs: Vec<[u32; 2]> = keys.iter().zip(0..).map(|(&k, i)| [k, i]).collect();
         context
             .queue
-            .write_buffer(sorter.keys(), 0, bytemuck::cast_slice(keys));
-        context
-            .queue
-            .write_buffer(sorter.values(), 0, bytemuck::cast_slice(&indices));
+            .write_buffer(sorter.pairs(), 0, bytemuck::cast_slice(&pairs));
         let mut encoder = context
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -218,19 +255,11 @@ impl RadixSort {
             sorter.encode(&mut pass);
         }
         context.queue.submit([encoder.finish()]);
-        let bytes = 4 * keys.len() as u64;
-        let out = read_back(
-            context,
-            &[
-                (sorter.sorted_keys(), bytes),
-                (sorter.sorted_values(), bytes),
-            ],
-        )?;
+        let bytes = 8 * keys.len() as u64;
+        let out = read_back(context, &[(sorter.sorted_pairs(), bytes)])?;
         context.take_error()?;
-        Ok((
-            bytemuck::pod_collect_to_vec(&out[0]),
-            bytemuck::pod_collect_to_vec(&out[1]),
-        ))
+        let sorted: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&out[0]);
+        Ok(sorted.into_iter().map(|[k, i]| (k, i)).unzip())
     }
 }
 
@@ -256,22 +285,49 @@ mod tests {
         assert_eq!(DIGITS, 1 << BITS_PER_PASS);
         assert_eq!(constant("BLOCK"), BLOCK);
         assert_eq!(constant("ROUNDS") * WORKGROUP_SIZE, BLOCK);
+        assert_eq!(constant("MAX_SLICES"), MAX_SLICES);
+        assert_eq!(constant("SCAN_TILE"), SLICE_COUNTS);
     }
 
     #[test]
-    fn slices_take_up_to_a_thousand_counts_and_divide_the_digits() {
-        // (blocks, digits per slice): one workgroup for a small sort, one per digit for a
-        // large one, powers of two between.
-        for (blocks, digits) in [(1, 256), (4, 256), (5, 128), (16, 64), (64, 16), (100, 8)] {
-            assert_eq!(slice_digits(blocks), digits, "{blocks} blocks");
+    fn slices_take_a_tile_of_counts_unless_there_would_be_too_many() {
+        for blocks in [1, 4, 5, 64, 100, 1024, 4096, 8192] {
+            assert_eq!(
+                slice_length(blocks, MAX_SLICES),
+                SLICE_COUNTS,
+                "{blocks} blocks"
+            );
         }
-        for blocks in [1024, 1025, 4096, 100_000] {
-            assert_eq!(slice_digits(blocks), 1, "{blocks} blocks");
+        for blocks in [8193, 16_384, 100_000, 4_194_304] {
+            let length = slice_length(blocks, MAX_SLICES);
+            assert!(length > SLICE_COUNTS, "{blocks} blocks");
+            let slices = (DIGITS as u32 * blocks).div_ceil(length);
+            assert!(slices <= MAX_SLICES, "{blocks} blocks: {slices} slices");
         }
-        for blocks in 1..3000 {
-            let digits = slice_digits(blocks);
-            assert_eq!(DIGITS as u32 % digits, 0);
-            assert!(digits == 1 || digits * blocks <= SLICE_COUNTS);
+    }
+
+    /// Slices of several tiles, which only sorts of over 8 million pairs make with
+    /// [`MAX_SLICES`]: the same order as a stable sort on the CPU.
+    #[test]
+    fn slices_of_several_tiles_sort_as_one_tile_does() {
+        let Some(context) = crate::kernels::testing::context() else {
+            return;
+        };
+        let count = 300_000_u32;
+        // Few distinct keys, so equal keys must keep their order.
+        let keys: Vec<u32> = (0..count)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) & 0xf0f0f)
+            .collect();
+        for max_slices in [3, 16, MAX_SLICES] {
+            let sorter =
+                RadixSort::with_max_slices(&context, count, 24, false, max_slices).expect("sort");
+            assert!(max_slices == MAX_SLICES || sorter.slices <= max_slices);
+            let (sorted_keys, order) = sorter.sort(&context, &keys).expect("sorted");
+            let mut expected: Vec<u32> = (0..count).collect();
+            expected.sort_by_key(|&i| keys[i as usize]);
+            assert!(order == expected, "{max_slices} slices at most");
+            let expected_keys: Vec<u32> = expected.iter().map(|&i| keys[i as usize]).collect();
+            assert!(sorted_keys == expected_keys, "{max_slices} slices at most");
         }
     }
 }

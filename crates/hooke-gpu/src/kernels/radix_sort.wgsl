@@ -1,15 +1,21 @@
-// One pass of a stable LSD radix sort of (key, value) pairs on 8-bit digits, in three kernels:
-// `count_digits` counts each block's digits, `scan` turns the counts (digit-major, then block)
-// into prefix sums within slices of digits, with each slice's total after them, and `scatter`
-// adds the totals of the slices below and moves every pair to its slot,
-// ranked within its block by its position so equal digits keep their order. Blocks and the
-// histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
+// One pass of a stable LSD radix sort of (key, value) pairs on 8-bit digits (a pair is one
+// vec2<u32>, so moving it is one 8-byte write, not two 4-byte ones): `count_digits`
+// counts each block's digits (only for a first pass whose keys nobody counted as they were
+// written), `scan` turns the counts (digit-major, then block) into prefix sums within slices of
+// `slice_length` counts, with each slice's total after them, and `scatter` adds the totals of
+// the slices below and moves every pair to its slot, ranked within its block by its position so equal digits
+// keep their order. Where another pass follows, `scatter` also counts that pass's digits in the
+// blocks the pairs land in, into the other of two histograms (which this pass's `scan` cleared),
+// so later passes need no counting kernel: two dispatches a pass instead of three. Blocks and
+// the histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
 
 @group(0) @binding(0) var<uniform> su: SortUniforms;
-@group(0) @binding(1) var<storage, read> keys_in: array<u32>;
-@group(0) @binding(2) var<storage, read> values_in: array<u32>;
-@group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
-@group(0) @binding(4) var<storage, read_write> values_out: array<u32>;
+// (key, value)
+@group(0) @binding(1) var<storage, read> pairs_in: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read_write> pairs_out: array<vec2<u32>>;
+// The next pass's digit counts (its `histogram`), when `su.counts_next` is 1: cleared by `scan`,
+// added to by `scatter`. Integer additions, so the counts do not depend on their order.
+@group(0) @binding(11) var<storage, read_write> next_histogram: array<atomic<u32>>;
 
 // Bit masks of one round's members per digit: WORKGROUP_SIZE / 32 words each.
 const WORDS: u32 = 2u;
@@ -17,16 +23,23 @@ const WORDS: u32 = 2u;
 var<workgroup> members: array<atomic<u32>, 512>;
 // The next output slot of each digit in this block, advanced round by round.
 var<workgroup> next_slot: array<u32, DIGITS>;
-// The first slot of each slice of the histogram's digits.
-var<workgroup> slice_base: array<u32, DIGITS>;
+// Slices of the histogram at most (`radix_sort::MAX_SLICES`): `scatter` scans all their totals.
+const MAX_SLICES: u32 = 2048u;
+// The first slot of each slice of the histogram.
+var<workgroup> slice_base: array<u32, MAX_SLICES>;
 var<workgroup> partial_sums: array<u32, WORKGROUP_SIZE>;
+// `scan`'s tile of counts: loaded and stored by consecutive invocations (coalesced), summed
+// in runs per invocation from here.
+const SCAN_TILE: u32 = 1024u;
+var<workgroup> tile_counts: array<u32, SCAN_TILE>;
+var<workgroup> tile_total: u32;
 
 fn digit_of(key: u32) -> u32 {
     return (key >> su.shift) & (DIGITS - 1u);
 }
 
 fn entry_digit(i: u32) -> u32 {
-    return digit_of(keys_in[i]);
+    return digit_of(pairs_in[i].x);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -38,13 +51,16 @@ fn count_digits(
     count_block_digits(lane, block_index(group, groups), su.block_count, su.count);
 }
 
-// One workgroup per slice of `digits_per_slice` digits (consecutive in the digit-major
-// histogram): each invocation sums a contiguous run of the slice's counts, the run totals are
-// scanned in shared memory, then each run is rewritten as exclusive prefix sums within the
-// slice, and the slice's total goes after the histogram for `scatter`. Slices keep each
-// invocation's run short on large meshes (one workgroup for the whole histogram took most of
-// the self-collision's time on a real GPU) and the workgroups few on small ones (each pays
-// for its barriers where a software renderer runs invocations in turn).
+// One workgroup per slice of `slice_length` consecutive counts of the digit-major histogram
+// (a tile, SCAN_TILE, unless the histogram is so large that MAX_SLICES slices would not cover
+// it), tile by tile: the tile is loaded into workgroup memory, each invocation sums a
+// contiguous run of it, the run totals are scanned, each run is rewritten as exclusive prefix
+// sums within the slice, and the tile is stored back; the slice's total goes after the
+// histogram for `scatter`. Slices of a tile give a large sort many workgroups, each with one
+// short pass over its counts, and a small one few (each pays for its barriers where a software
+// renderer runs invocations in turn). Earlier a slice was one digit's counts at least: on an
+// H100 its 256 workgroups, each reading 4096 counts in runs 64 counts apart between
+// neighbouring invocations, took a quarter of a 2048^2 self-collision step.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scan(
     @builtin(local_invocation_index) lane: u32,
@@ -52,25 +68,51 @@ fn scan(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let slice = block_index(group, groups);
+    let counts = DIGITS * su.block_count;
+    let base = slice * su.slice_length;
     // Uniform across the workgroup, so the barriers below are reached by every invocation.
-    if slice * su.digits_per_slice >= DIGITS {
+    if base >= counts {
         return;
     }
-    let length = su.digits_per_slice * su.block_count;
-    let base = slice * length;
-    let run = lane_run(lane, length);
-    var total = 0u;
-    for (var i = run.x; i < run.y; i++) {
-        total += histogram[base + i];
+    let length = min(su.slice_length, counts - base);
+    if su.counts_next != 0u {
+        // The same entries of the next pass's histogram: the slices cover it all. The last
+        // reader of that histogram was the previous pass's `scatter`, which has finished.
+        for (var i = lane; i < length; i += WORKGROUP_SIZE) {
+            atomicStore(&next_histogram[base + i], 0u);
+        }
     }
-    var running = exclusive_scan(lane, total);
-    for (var i = run.x; i < run.y; i++) {
-        let c = histogram[base + i];
-        histogram[base + i] = running;
-        running += c;
+    var carry = 0u;
+    for (var first = 0u; first < length; first += SCAN_TILE) {
+        let size = min(SCAN_TILE, length - first);
+        for (var i = lane; i < size; i += WORKGROUP_SIZE) {
+            tile_counts[i] = histogram[base + first + i];
+        }
+        workgroupBarrier();
+        let run = lane_run(lane, size);
+        var total = 0u;
+        for (var i = run.x; i < run.y; i++) {
+            total += tile_counts[i];
+        }
+        var running = carry + exclusive_scan(lane, total);
+        for (var i = run.x; i < run.y; i++) {
+            let c = tile_counts[i];
+            tile_counts[i] = running;
+            running += c;
+        }
+        if lane == WORKGROUP_SIZE - 1u {
+            tile_total = running;
+        }
+        workgroupBarrier();
+        for (var i = lane; i < size; i += WORKGROUP_SIZE) {
+            histogram[base + first + i] = tile_counts[i];
+        }
+        carry = tile_total;
+        // Every invocation has read the tile and its total before the next tile replaces them.
+        workgroupBarrier();
     }
-    if lane == WORKGROUP_SIZE - 1u {
-        histogram[DIGITS * su.block_count + slice] = running;
+    if lane == 0u {
+        histogram[counts + slice] = carry;
     }
 }
 
@@ -115,8 +157,8 @@ fn scatter(
     }
     // Each digit's first slot is its count's prefix within its slice (from `scan`) plus the
     // totals of the slices before (after the histogram): each invocation takes a run of them.
-    let slices = DIGITS / su.digits_per_slice;
     let totals = DIGITS * su.block_count;
+    let slices = (totals + su.slice_length - 1u) / su.slice_length;
     let run = lane_run(lane, slices);
     var sum = 0u;
     for (var s = run.x; s < run.y; s++) {
@@ -129,7 +171,8 @@ fn scatter(
     }
     workgroupBarrier();
     for (var d = lane; d < DIGITS; d += WORKGROUP_SIZE) {
-        next_slot[d] = slice_base[d / su.digits_per_slice] + histogram[d * su.block_count + block];
+        let entry = d * su.block_count + block;
+        next_slot[d] = slice_base[entry / su.slice_length] + histogram[entry];
     }
     for (var w = lane; w < DIGITS * WORDS; w += WORKGROUP_SIZE) {
         atomicStore(&members[w], 0u);
@@ -140,11 +183,11 @@ fn scatter(
         workgroupBarrier();
         let i = block * BLOCK + round * WORKGROUP_SIZE + lane;
         let valid = i < su.count;
-        var key = 0u;
+        var pair = vec2<u32>(0u);
         var digit = 0u;
         if valid {
-            key = keys_in[i];
-            digit = digit_of(key);
+            pair = pairs_in[i];
+            digit = digit_of(pair.x);
             atomicOr(&members[digit * WORDS + word], 1u << bit);
         }
         workgroupBarrier();
@@ -162,8 +205,11 @@ fn scatter(
             }
             last = later == 0u;
             let slot = next_slot[digit] + rank;
-            keys_out[slot] = key;
-            values_out[slot] = values_in[i];
+            pairs_out[slot] = pair;
+            if su.counts_next != 0u {
+                let next_digit = (pair.x >> (su.shift + BITS_PER_PASS)) & (DIGITS - 1u);
+                atomicAdd(&next_histogram[next_digit * su.block_count + slot / BLOCK], 1u);
+            }
         }
         workgroupBarrier();
         if valid {

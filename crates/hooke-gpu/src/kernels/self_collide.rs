@@ -104,8 +104,7 @@ impl SelfCollidePass {
                         &cell_keys.get_bind_group_layout(0),
                         &[
                             (0, u.as_entire_binding()),
-                            (2, sort.keys().as_entire_binding()),
-                            (3, sort.values().as_entire_binding()),
+                            (2, sort.pairs().as_entire_binding()),
                             (7, corrections.as_entire_binding()),
                             (8, target(current).as_entire_binding()),
                             (9, state.deltas.as_entire_binding()),
@@ -123,8 +122,7 @@ impl SelfCollidePass {
                 &[
                     (0, uniforms[0].as_entire_binding()),
                     (1, target(current).as_entire_binding()),
-                    (2, sort.sorted_keys().as_entire_binding()),
-                    (3, sort.sorted_values().as_entire_binding()),
+                    (2, sort.sorted_pairs().as_entire_binding()),
                     (4, gpu_model.scales.as_entire_binding()),
                     (5, offsets.as_entire_binding()),
                     (6, neighbors.as_entire_binding()),

@@ -24,10 +24,8 @@ struct SelfUniforms {
 // This step's new positions, read by `correct` (`moved` is the same buffer, for the kernels that
 // write it).
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
-// In vertex order after `cell_keys`, in key order after the sort.
-@group(0) @binding(2) var<storage, read_write> keys: array<u32>;
-// Vertex ids: in vertex order after `cell_keys`, in key order after the sort.
-@group(0) @binding(3) var<storage, read_write> sorted: array<u32>;
+// (cell key, vertex): in vertex order after `cell_keys`, in key order after the sort.
+@group(0) @binding(2) var<storage, read_write> pairs: array<vec2<u32>>;
 @group(0) @binding(4) var<storage, read> scales: array<vec4<f32>>;
 // The spring adjacency (CSR): neighbours of v are neighbors[offsets[v]..offsets[v + 1]].
 @group(0) @binding(5) var<storage, read> offsets: array<u32>;
@@ -46,12 +44,18 @@ fn cell_key(p: vec3<f32>) -> u32 {
 }
 
 // Moves `v` by its correction: position and the step's motion. Returns the new position.
+// Most vertices have none: they are left as they are, as on the CPU (which moves only the
+// vertices it pushed), and their position and motion are not written back.
 fn apply_correction(v: u32) -> vec3<f32> {
     let c = corrections[v];
-    let x = moved[v].xyz + c.xyz;
-    moved[v] = vec4<f32>(x, 1.0);
+    let x = moved[v].xyz;
+    if all(c.xyz == vec3<f32>(0.0)) {
+        return x;
+    }
+    let corrected = x + c.xyz;
+    moved[v] = vec4<f32>(corrected, 1.0);
     deltas[v] = deltas[v] + c;
-    return x;
+    return corrected;
 }
 
 // Vertex `v`'s key for this grid, after moving it by the previous grid's correction (every
@@ -64,8 +68,7 @@ fn entry_digit(v: u32) -> u32 {
         x = moved[v].xyz;
     }
     let key = cell_key(x);
-    keys[v] = key;
-    sorted[v] = v;
+    pairs[v] = vec2<u32>(key, v);
     return key & (DIGITS - 1u);
 }
 
@@ -96,25 +99,28 @@ fn correct(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     if j >= n {
         return;
     }
-    let p = sorted[j];
+    let slot = pairs[j];
+    let p = slot.y;
     let wp = scales[p].x;
     var correction = vec3<f32>(0.0);
     if wp > 0.0 {
         let xp = positions[p].xyz;
         let d2 = cu.distance * cu.distance;
-        let key = keys[j];
+        let key = slot.x;
         // The window: same-key slots, nearest first, below j and then above (as on the CPU).
         for (var m = j; m > 0u && j - m < cu.window; m--) {
-            if keys[m - 1u] != key {
+            let other = pairs[m - 1u];
+            if other.x != key {
                 break;
             }
-            correction += push(p, sorted[m - 1u], xp, wp, d2);
+            correction += push(p, other.y, xp, wp, d2);
         }
         for (var m = j + 1u; m < n && m - j <= cu.window; m++) {
-            if keys[m] != key {
+            let other = pairs[m];
+            if other.x != key {
                 break;
             }
-            correction += push(p, sorted[m], xp, wp, d2);
+            correction += push(p, other.y, xp, wp, d2);
         }
     }
     corrections[p] = vec4<f32>(correction, 0.0);
