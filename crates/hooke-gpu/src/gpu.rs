@@ -79,6 +79,18 @@ pub fn compute_pipeline(
     source: &str,
     entry_point: &str,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
+    compute_pipeline_with(context, label, source, entry_point, &[])
+}
+
+/// [`compute_pipeline`] with values for the shader's pipeline-overridable constants (WGSL
+/// `override`s), by name.
+pub fn compute_pipeline_with(
+    context: &GpuContext,
+    label: &str,
+    source: &str,
+    entry_point: &str,
+    constants: &[(&str, f64)],
+) -> Result<wgpu::ComputePipeline, GpuError> {
     context.note_pipeline();
     validated(context, label, || {
         let module = shader_module(context, label, source);
@@ -89,7 +101,10 @@ pub fn compute_pipeline(
                 layout: None,
                 module: &module,
                 entry_point: Some(entry_point),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             })
     })
@@ -229,7 +244,13 @@ impl Kernel {
 /// Workgroups for `count` invocations as a 2D grid (one dimension holds at most 65535);
 /// kernels flatten it back with `flat_index`.
 pub fn workgroups(count: u32) -> (u32, u32) {
-    let groups = count.div_ceil(WORKGROUP_SIZE).max(1);
+    grid(count.div_ceil(WORKGROUP_SIZE))
+}
+
+/// `groups` workgroups (at least one) as a 2D grid, for kernels of their own workgroup size
+/// that number their workgroups (`block_index` in `digits.wgsl`).
+fn grid(groups: u32) -> (u32, u32) {
+    let groups = groups.max(1);
     let rows = groups.div_ceil(65_535);
     (groups.div_ceil(rows), rows)
 }
@@ -261,6 +282,20 @@ pub fn dispatch_in(
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, bind_group, &[]);
     let (x, y) = workgroups(count);
+    pass.dispatch_workgroups(x, y, 1);
+}
+
+/// Records `pipeline` over `groups` workgroups (of whatever size its shader declares) into an
+/// open compute pass.
+pub fn dispatch_groups_in(
+    pass: &mut wgpu::ComputePass<'_>,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    groups: u32,
+) {
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, bind_group, &[]);
+    let (x, y) = grid(groups);
     pass.dispatch_workgroups(x, y, 1);
 }
 

@@ -12,7 +12,7 @@
 use crate::GpuError;
 use crate::context::GpuContext;
 use crate::gpu::{
-    WORKGROUP_SIZE, bind_group, compute_pipeline, dispatch_in, read_back, uniform, zeroed,
+    bind_group, compute_pipeline_with, dispatch_groups_in, read_back, uniform, zeroed,
 };
 use crate::layout::SortUniforms;
 
@@ -21,15 +21,54 @@ const DIGITS: u64 = 256;
 /// Pairs per block (`BLOCK` in `digits.wgsl`).
 pub const BLOCK: u32 = 1024;
 /// Counts one workgroup of the scan takes, unless the histogram is larger than
-/// [`MAX_SLICES`] such slices: `SCAN_TILE` in `radix_sort.wgsl`, 16 per invocation.
+/// [`MAX_SLICES`] such slices: `SCAN_TILE` in `radix_sort.wgsl`, 4 per invocation.
 const SLICE_COUNTS: u32 = 1024;
 /// Slices of the histogram at most: every scatter workgroup scans all their totals in
-/// workgroup memory (`MAX_SLICES` in `radix_sort.wgsl`, 8 KiB).
-pub const MAX_SLICES: u32 = 2048;
+/// workgroup memory (`MAX_SLICES` in `radix_sort.wgsl`, 4 KiB of the 16 KiB WebGPU grants).
+pub const MAX_SLICES: u32 = 1024;
+
+/// Invocations of each sort workgroup, one a block or a slice: `SORT_GROUP` in `digits.wgsl`,
+/// a pipeline-overridable constant. On an H100 the self-collision's sort and key passes took
+/// 40% less GPU time at 128^2 and 256^2 with wide workgroups, about 10% less at 1024^2 and
+/// 2048^2; on lavapipe, which runs a workgroup's invocations in turn, twice as long.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SortGroup {
+    /// 64 invocations, 16 rounds a block (the shader's default).
+    Narrow,
+    /// 256 invocations, 4 rounds a block.
+    Wide,
+}
+
+impl SortGroup {
+    pub const ALL: [SortGroup; 2] = [SortGroup::Narrow, SortGroup::Wide];
+
+    /// Wide on a GPU; narrow on a software renderer, and where the adapter does not say what
+    /// it is (a browser's).
+    pub fn for_adapter(info: &wgpu::AdapterInfo) -> Self {
+        match info.device_type {
+            wgpu::DeviceType::DiscreteGpu
+            | wgpu::DeviceType::IntegratedGpu
+            | wgpu::DeviceType::VirtualGpu => Self::Wide,
+            wgpu::DeviceType::Cpu | wgpu::DeviceType::Other => Self::Narrow,
+        }
+    }
+
+    pub fn invocations(self) -> u32 {
+        match self {
+            Self::Narrow => 64,
+            Self::Wide => 256,
+        }
+    }
+
+    /// The pipeline constants that make a sort kernel's workgroups this size.
+    pub(crate) fn constants(self) -> [(&'static str, f64); 1] {
+        [("SORT_GROUP", f64::from(self.invocations()))]
+    }
+}
 
 /// Counts per slice of the histogram of `block_count` blocks that one scan workgroup takes:
 /// [`SLICE_COUNTS`], or more where that would make more than `max_slices` slices (from
-/// 8192 blocks, 8 million pairs, with [`MAX_SLICES`]).
+/// 4096 blocks, 4 million pairs, with [`MAX_SLICES`]: a 2048^2 grid's vertices take 4096).
 fn slice_length(block_count: u32, max_slices: u32) -> u32 {
     (DIGITS as u32 * block_count)
         .div_ceil(max_slices)
@@ -39,6 +78,7 @@ fn slice_length(block_count: u32, max_slices: u32) -> u32 {
 /// Buffers and recorded bind groups to sort `count` pairs on their low `key_bits` bits.
 #[derive(Debug)]
 pub struct RadixSort {
+    group: SortGroup,
     /// (key, value) pairs. Input: `pairs[0]`; output: `pairs[passes % 2]`.
     pairs: [wgpu::Buffer; 2],
     block_count: u32,
@@ -70,16 +110,18 @@ impl RadixSort {
         key_bits: u32,
         first_counted: bool,
     ) -> Result<Self, GpuError> {
-        Self::with_max_slices(context, count, key_bits, first_counted, MAX_SLICES)
+        let group = SortGroup::for_adapter(&context.info);
+        Self::with_max_slices(context, count, key_bits, first_counted, group, MAX_SLICES)
     }
 
     /// [`RadixSort::new`] with the histogram in at most `max_slices` slices (tests take fewer
     /// than [`MAX_SLICES`] to make slices of several tiles on few pairs).
-    fn with_max_slices(
+    pub(crate) fn with_max_slices(
         context: &GpuContext,
         count: u32,
         key_bits: u32,
         first_counted: bool,
+        group: SortGroup,
         max_slices: u32,
     ) -> Result<Self, GpuError> {
         let pass_count = key_bits.div_ceil(BITS_PER_PASS).max(1);
@@ -99,10 +141,12 @@ impl RadixSort {
                 usage,
             )
         });
-        let count_digits =
-            compute_pipeline(context, "radix count", super::RADIX_SORT, "count_digits")?;
-        let scan = compute_pipeline(context, "radix scan", super::RADIX_SORT, "scan")?;
-        let scatter = compute_pipeline(context, "radix scatter", super::RADIX_SORT, "scatter")?;
+        let pipeline = |label, entry| {
+            compute_pipeline_with(context, label, super::RADIX_SORT, entry, &group.constants())
+        };
+        let count_digits = pipeline("radix count", "count_digits")?;
+        let scan = pipeline("radix scan", "scan")?;
+        let scatter = pipeline("radix scatter", "scatter")?;
         let uniforms: Vec<wgpu::Buffer> = (0..pass_count)
             .map(|pass| {
                 uniform(
@@ -160,6 +204,7 @@ impl RadixSort {
             })
             .collect();
         Ok(Self {
+            group,
             pairs,
             block_count,
             slices,
@@ -190,6 +235,12 @@ impl RadixSort {
         &self.histograms[0]
     }
 
+    /// The size of the sort's workgroups, which a kernel that counts the first digits must
+    /// share.
+    pub fn group(&self) -> SortGroup {
+        self.group
+    }
+
     /// Blocks of [`BLOCK`] pairs.
     pub fn block_count(&self) -> u32 {
         self.block_count
@@ -208,19 +259,18 @@ impl RadixSort {
 
     /// Records the sort into an open compute pass.
     pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
-        // One workgroup per block.
-        let block_invocations = self.block_count * WORKGROUP_SIZE;
+        // One workgroup per block, or per slice of the histogram.
         if !self.first_counted {
-            dispatch_in(
+            dispatch_groups_in(
                 pass,
                 &self.count_digits,
                 &self.first_count,
-                block_invocations,
+                self.block_count,
             );
         }
         for [scan_group, scatter_group] in &self.passes {
-            dispatch_in(pass, &self.scan, scan_group, self.slices * WORKGROUP_SIZE);
-            dispatch_in(pass, &self.scatter, scatter_group, block_invocations);
+            dispatch_groups_in(pass, &self.scan, scan_group, self.slices);
+            dispatch_groups_in(pass, &self.scatter, scatter_group, self.block_count);
         }
     }
 
@@ -284,21 +334,32 @@ mod tests {
         assert_eq!(u64::from(constant("DIGITS")), DIGITS);
         assert_eq!(DIGITS, 1 << BITS_PER_PASS);
         assert_eq!(constant("BLOCK"), BLOCK);
-        assert_eq!(constant("ROUNDS") * WORKGROUP_SIZE, BLOCK);
+        // The overrides: a workgroup size from the one SORT_GROUP, which the others follow.
+        let sizes: Vec<&str> = module
+            .overrides
+            .iter()
+            .filter_map(|(_, o)| o.name.as_deref())
+            .collect();
+        assert_eq!(sizes, ["SORT_GROUP", "ROUNDS", "WORDS", "MEMBER_WORDS"]);
+        for group in SortGroup::ALL {
+            let invocations = group.invocations();
+            assert_eq!(BLOCK % invocations, 0, "{group:?}");
+            assert_eq!(invocations % 32, 0, "{group:?}: whole words of members");
+        }
         assert_eq!(constant("MAX_SLICES"), MAX_SLICES);
         assert_eq!(constant("SCAN_TILE"), SLICE_COUNTS);
     }
 
     #[test]
     fn slices_take_a_tile_of_counts_unless_there_would_be_too_many() {
-        for blocks in [1, 4, 5, 64, 100, 1024, 4096, 8192] {
+        for blocks in [1, 4, 5, 64, 100, 1024, 4096] {
             assert_eq!(
                 slice_length(blocks, MAX_SLICES),
                 SLICE_COUNTS,
                 "{blocks} blocks"
             );
         }
-        for blocks in [8193, 16_384, 100_000, 4_194_304] {
+        for blocks in [4097, 16_384, 100_000, 4_194_304] {
             let length = slice_length(blocks, MAX_SLICES);
             assert!(length > SLICE_COUNTS, "{blocks} blocks");
             let slices = (DIGITS as u32 * blocks).div_ceil(length);
@@ -306,7 +367,7 @@ mod tests {
         }
     }
 
-    /// Slices of several tiles, which only sorts of over 8 million pairs make with
+    /// Slices of several tiles, which only sorts of over 4 million pairs make with
     /// [`MAX_SLICES`]: the same order as a stable sort on the CPU.
     #[test]
     fn slices_of_several_tiles_sort_as_one_tile_does() {
@@ -318,16 +379,22 @@ mod tests {
         let keys: Vec<u32> = (0..count)
             .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) & 0xf0f0f)
             .collect();
-        for max_slices in [3, 16, MAX_SLICES] {
-            let sorter =
-                RadixSort::with_max_slices(&context, count, 24, false, max_slices).expect("sort");
+        for (group, max_slices) in SortGroup::ALL
+            .into_iter()
+            .flat_map(|g| [(g, 3), (g, 16), (g, MAX_SLICES)])
+        {
+            let sorter = RadixSort::with_max_slices(&context, count, 24, false, group, max_slices)
+                .expect("sort");
             assert!(max_slices == MAX_SLICES || sorter.slices <= max_slices);
             let (sorted_keys, order) = sorter.sort(&context, &keys).expect("sorted");
             let mut expected: Vec<u32> = (0..count).collect();
             expected.sort_by_key(|&i| keys[i as usize]);
-            assert!(order == expected, "{max_slices} slices at most");
+            assert!(order == expected, "{group:?}, {max_slices} slices at most");
             let expected_keys: Vec<u32> = expected.iter().map(|&i| keys[i as usize]).collect();
-            assert!(sorted_keys == expected_keys, "{max_slices} slices at most");
+            assert!(
+                sorted_keys == expected_keys,
+                "{group:?}, {max_slices} slices at most"
+            );
         }
     }
 }

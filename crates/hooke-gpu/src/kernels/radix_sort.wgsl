@@ -17,17 +17,18 @@
 // added to by `scatter`. Integer additions, so the counts do not depend on their order.
 @group(0) @binding(11) var<storage, read_write> next_histogram: array<atomic<u32>>;
 
-// Bit masks of one round's members per digit: WORKGROUP_SIZE / 32 words each.
-const WORDS: u32 = 2u;
+// Bit masks of one round's members per digit: SORT_GROUP / 32 words each.
+override WORDS: u32 = SORT_GROUP / 32u;
+override MEMBER_WORDS: u32 = DIGITS * WORDS;
 
-var<workgroup> members: array<atomic<u32>, 512>;
+var<workgroup> members: array<atomic<u32>, MEMBER_WORDS>;
 // The next output slot of each digit in this block, advanced round by round.
 var<workgroup> next_slot: array<u32, DIGITS>;
 // Slices of the histogram at most (`radix_sort::MAX_SLICES`): `scatter` scans all their totals.
-const MAX_SLICES: u32 = 2048u;
+const MAX_SLICES: u32 = 1024u;
 // The first slot of each slice of the histogram.
 var<workgroup> slice_base: array<u32, MAX_SLICES>;
-var<workgroup> partial_sums: array<u32, WORKGROUP_SIZE>;
+var<workgroup> partial_sums: array<u32, SORT_GROUP>;
 // `scan`'s tile of counts: loaded and stored by consecutive invocations (coalesced), summed
 // in runs per invocation from here.
 const SCAN_TILE: u32 = 1024u;
@@ -42,7 +43,7 @@ fn entry_digit(i: u32) -> u32 {
     return digit_of(pairs_in[i].x);
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SORT_GROUP)
 fn count_digits(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
@@ -61,7 +62,7 @@ fn count_digits(
 // renderer runs invocations in turn). Earlier a slice was one digit's counts at least: on an
 // H100 its 256 workgroups, each reading 4096 counts in runs 64 counts apart between
 // neighbouring invocations, took a quarter of a 2048^2 self-collision step.
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SORT_GROUP)
 fn scan(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
@@ -78,14 +79,14 @@ fn scan(
     if su.counts_next != 0u {
         // The same entries of the next pass's histogram: the slices cover it all. The last
         // reader of that histogram was the previous pass's `scatter`, which has finished.
-        for (var i = lane; i < length; i += WORKGROUP_SIZE) {
+        for (var i = lane; i < length; i += SORT_GROUP) {
             atomicStore(&next_histogram[base + i], 0u);
         }
     }
     var carry = 0u;
     for (var first = 0u; first < length; first += SCAN_TILE) {
         let size = min(SCAN_TILE, length - first);
-        for (var i = lane; i < size; i += WORKGROUP_SIZE) {
+        for (var i = lane; i < size; i += SORT_GROUP) {
             tile_counts[i] = histogram[base + first + i];
         }
         workgroupBarrier();
@@ -100,11 +101,11 @@ fn scan(
             tile_counts[i] = running;
             running += c;
         }
-        if lane == WORKGROUP_SIZE - 1u {
+        if lane == SORT_GROUP - 1u {
             tile_total = running;
         }
         workgroupBarrier();
-        for (var i = lane; i < size; i += WORKGROUP_SIZE) {
+        for (var i = lane; i < size; i += SORT_GROUP) {
             histogram[base + first + i] = tile_counts[i];
         }
         carry = tile_total;
@@ -118,7 +119,7 @@ fn scan(
 
 // The run [x, y) of `length` items that invocation `lane` takes: contiguous, in lane order.
 fn lane_run(lane: u32, length: u32) -> vec2<u32> {
-    let run = (length + WORKGROUP_SIZE - 1u) / WORKGROUP_SIZE;
+    let run = (length + SORT_GROUP - 1u) / SORT_GROUP;
     let start = min(lane * run, length);
     return vec2<u32>(start, min(start + run, length));
 }
@@ -127,7 +128,7 @@ fn lane_run(lane: u32, length: u32) -> vec2<u32> {
 fn exclusive_scan(lane: u32, value: u32) -> u32 {
     partial_sums[lane] = value;
     workgroupBarrier();
-    for (var offset = 1u; offset < WORKGROUP_SIZE; offset <<= 1u) {
+    for (var offset = 1u; offset < SORT_GROUP; offset <<= 1u) {
         var earlier = 0u;
         if lane >= offset {
             earlier = partial_sums[lane - offset];
@@ -142,9 +143,9 @@ fn exclusive_scan(lane: u32, value: u32) -> u32 {
     return inclusive - value;
 }
 
-// The block's pairs go out in ROUNDS rounds of WORKGROUP_SIZE, in order: a pair's slot is its
+// The block's pairs go out in ROUNDS rounds of SORT_GROUP, in order: a pair's slot is its
 // digit's next slot in the block plus the members of its digit before it in its round.
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SORT_GROUP)
 fn scatter(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
@@ -170,18 +171,18 @@ fn scatter(
         below += histogram[totals + s];
     }
     workgroupBarrier();
-    for (var d = lane; d < DIGITS; d += WORKGROUP_SIZE) {
+    for (var d = lane; d < DIGITS; d += SORT_GROUP) {
         let entry = d * su.block_count + block;
         next_slot[d] = slice_base[entry / su.slice_length] + histogram[entry];
     }
-    for (var w = lane; w < DIGITS * WORDS; w += WORKGROUP_SIZE) {
+    for (var w = lane; w < DIGITS * WORDS; w += SORT_GROUP) {
         atomicStore(&members[w], 0u);
     }
     let word = lane / 32u;
     let bit = lane % 32u;
     for (var round = 0u; round < ROUNDS; round++) {
         workgroupBarrier();
-        let i = block * BLOCK + round * WORKGROUP_SIZE + lane;
+        let i = block * BLOCK + round * SORT_GROUP + lane;
         let valid = i < su.count;
         var pair = vec2<u32>(0u);
         var digit = 0u;

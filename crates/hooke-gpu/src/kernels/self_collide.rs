@@ -6,11 +6,12 @@
 
 use hooke_core::selfcollide::{self, SelfCollision};
 
-use super::radix_sort::RadixSort;
+use super::radix_sort::{MAX_SLICES, RadixSort, SortGroup};
 use crate::GpuError;
 use crate::context::GpuContext;
 use crate::gpu::{
-    WORKGROUP_SIZE, bind_group, compute_pipeline, dispatch_in, storage, uniform, zeroed,
+    bind_group, compute_pipeline, compute_pipeline_with, dispatch_groups_in, dispatch_in, storage,
+    uniform, zeroed,
 };
 use crate::layout::SelfUniforms;
 use crate::model::GpuModel;
@@ -39,11 +40,23 @@ impl SelfCollidePass {
         state: &GpuState,
         config: &SelfCollision,
     ) -> Result<Self, GpuError> {
+        let group = SortGroup::for_adapter(&context.info);
+        Self::with_sort_group(context, gpu_model, state, config, group)
+    }
+
+    /// [`SelfCollidePass::new`] with the sort's workgroups of a given size (tests run both).
+    fn with_sort_group(
+        context: &GpuContext,
+        gpu_model: &GpuModel,
+        state: &GpuState,
+        config: &SelfCollision,
+        group: SortGroup,
+    ) -> Result<Self, GpuError> {
         let model = &gpu_model.model;
         let n = model.vertex_count() as u32;
         let key_bits = selfcollide::key_bits(model.vertex_count());
-        // `cell_keys` counts the first digits.
-        let sort = RadixSort::new(context, n, key_bits, true)?;
+        // `cell_keys` counts the first digits, in workgroups of the sort's size.
+        let sort = RadixSort::with_max_slices(context, n, key_bits, true, group, MAX_SLICES)?;
         let offsets = storage(
             context,
             "self-collision adjacency offsets",
@@ -79,7 +92,13 @@ impl SelfCollidePass {
                 )
             })
             .collect();
-        let cell_keys = compute_pipeline(context, "cell keys", super::SELF_COLLIDE, "cell_keys")?;
+        let cell_keys = compute_pipeline_with(
+            context,
+            "cell keys",
+            super::SELF_COLLIDE,
+            "cell_keys",
+            &group.constants(),
+        )?;
         let correct = compute_pipeline(
             context,
             "self-collision correct",
@@ -184,14 +203,9 @@ impl SelfCollidePass {
         });
         let n = self.vertex_count;
         // One workgroup per sort block.
-        let block_invocations = self.sort.block_count() * WORKGROUP_SIZE;
+        let blocks = self.sort.block_count();
         for groups in &self.key_groups {
-            dispatch_in(
-                &mut pass,
-                &self.cell_keys,
-                &groups[current],
-                block_invocations,
-            );
+            dispatch_groups_in(&mut pass, &self.cell_keys, &groups[current], blocks);
             self.sort.encode(&mut pass);
             dispatch_in(&mut pass, &self.correct, &self.correct_groups[current], n);
         }
@@ -220,16 +234,19 @@ mod tests {
     #[test]
     fn self_collision_pass_parts_close_pairs_as_hooke_core_does() {
         let Some(context) = context() else { return };
-        // One to three sort passes (8, 16 and 24 key bits), one to 33 sort blocks.
+        // One to three sort passes (8, 16 and 24 key bits), one to 33 sort blocks, with the
+        // sort's workgroups of either size whatever the adapter would get.
         for vertices in [100, 144, 3000, 33_000] {
             let scene = SceneFile::benchmark(MeshSection::unit_irregular(vertices, 4), vertices)
                 .build(Path::new("kernel test"), true)
                 .expect("scene");
-            check_folded_sheet(&context, &scene);
+            for group in SortGroup::ALL {
+                check_folded_sheet(&context, &scene, group);
+            }
         }
     }
 
-    fn check_folded_sheet(context: &GpuContext, scene: &Scene) {
+    fn check_folded_sheet(context: &GpuContext, scene: &Scene, group: SortGroup) {
         let config = SelfCollision::for_model(&scene.model);
         // The sheet folded along x = 0: its x > 0 half lies a quarter of the distance above the
         // other, so many unjoined pairs are too close.
@@ -257,7 +274,8 @@ mod tests {
         gpu_state.advance();
         gpu_state.write(context, &at_rest);
         gpu_state.advance();
-        let pass = SelfCollidePass::new(context, &model, &gpu_state, &config).expect("pass");
+        let pass = SelfCollidePass::with_sort_group(context, &model, &gpu_state, &config, group)
+            .expect("pass");
         run(context, |e| pass.encode(e, gpu_state.current, None));
         let actual = read_vec3s(context, &gpu_state.positions[1 - gpu_state.current], n);
         let mut expected: Vec<Vec3> = folded.iter().map(|p| p.as_vec3()).collect();
@@ -271,6 +289,9 @@ mod tests {
             .count();
         assert!(pushed > n / 20, "{n} vertices: only {pushed} pushed apart");
         let error = relative_l2(&actual, &expected);
-        assert!(error < TOLERANCE, "{n} vertices: relative L2 {error:.2e}");
+        assert!(
+            error < TOLERANCE,
+            "{n} vertices, {group:?}: relative L2 {error:.2e}"
+        );
     }
 }

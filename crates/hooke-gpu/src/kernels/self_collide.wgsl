@@ -74,7 +74,7 @@ fn entry_digit(v: u32) -> u32 {
 
 // One sort block of vertices per workgroup, so the block's first-pass digit counts are
 // complete when it ends.
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SORT_GROUP)
 fn cell_keys(
     @builtin(local_invocation_index) lane: u32,
     @builtin(workgroup_id) group: vec3<u32>,
