@@ -279,10 +279,7 @@ pub fn dispatch_in(
     bind_group: &wgpu::BindGroup,
     count: u32,
 ) {
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, bind_group, &[]);
-    let (x, y) = workgroups(count);
-    pass.dispatch_workgroups(x, y, 1);
+    dispatch_groups_in(pass, pipeline, bind_group, count.div_ceil(WORKGROUP_SIZE));
 }
 
 /// Records `pipeline` over `groups` workgroups (of whatever size its shader declares) into an

@@ -3,8 +3,8 @@
 // counts each block's digits (only for a first pass whose keys nobody counted as they were
 // written), `scan` turns the counts (digit-major, then block) into prefix sums within slices of
 // `slice_length` counts, with each slice's total after them, and `scatter` adds the totals of
-// the slices below and moves every pair to its slot, ranked within its block by its position so equal digits
-// keep their order. Where another pass follows, `scatter` also counts that pass's digits in the
+// the slices below and moves every pair to its slot, ranked within its block by its position
+// so equal digits keep their order. Where another pass follows, `scatter` also counts that pass's digits in the
 // blocks the pairs land in, into the other of two histograms (which this pass's `scan` cleared),
 // so later passes need no counting kernel: two dispatches a pass instead of three. Blocks and
 // the histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
@@ -61,7 +61,7 @@ fn count_digits(
 // short pass over its counts, and a small one few (each pays for its barriers where a software
 // renderer runs invocations in turn). Earlier a slice was one digit's counts at least: on an
 // H100 its 256 workgroups, each reading 4096 counts in runs 64 counts apart between
-// neighbouring invocations, took a quarter of a 2048^2 self-collision step.
+// neighbouring invocations, took a fifth to a third of a 2048^2 self-collision step.
 @compute @workgroup_size(SORT_GROUP)
 fn scan(
     @builtin(local_invocation_index) lane: u32,
