@@ -17,6 +17,13 @@ fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
 }
 
+/// `hooke ARGS --format json`, which must succeed: its report.
+fn json_report(args: &[&str]) -> serde_json::Value {
+    let result = hooke(&[args, &["--format", "json"]].concat());
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    serde_json::from_slice(&result.stdout).expect("json")
+}
+
 fn write(dir: &Path, name: &str, contents: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, contents).expect("write file");
@@ -244,7 +251,7 @@ fn info_reports_valences_stability_and_memory() {
 
 #[test]
 fn bench_prints_a_row_per_mesh_and_method() {
-    let result = hooke(&[
+    let report = json_report(&[
         "bench",
         "--sizes",
         "16,24",
@@ -256,11 +263,7 @@ fn bench_prints_a_row_per_mesh_and_method() {
         "20",
         "--warmup",
         "2",
-        "--format",
-        "json",
     ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     let rows = report["rows"].as_array().expect("rows");
     assert_eq!(rows.len(), 8);
     let shuffled: Vec<_> = rows
@@ -345,7 +348,7 @@ fn bench_times_every_solver_in_each_round_and_reports_the_median_round() {
 
 #[test]
 fn bench_adds_bending_springs_to_every_workload() {
-    let result = hooke(&[
+    let report = json_report(&[
         "bench",
         "--sizes",
         "16",
@@ -361,11 +364,7 @@ fn bench_adds_bending_springs_to_every_workload() {
         "1",
         "--bending",
         "0.1",
-        "--format",
-        "json",
     ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     let row = &report["rows"][0];
     // 16^2 grid: 705 edges, of which 645 are interior, each with a bending spring.
     assert_eq!(row["mesh"], "grid 16^2 + bending");
@@ -462,16 +461,7 @@ fn accuracy_shows_the_precision_ladder() {
     }
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = write(dir.path(), "cloth.toml", SMALL_CLOTH);
-    let result = hooke(&[
-        "accuracy",
-        path_str(&scene),
-        "--steps",
-        "200",
-        "--format",
-        "json",
-    ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let report = json_report(&["accuracy", path_str(&scene), "--steps", "200"]);
     let error_of = |name: &str| {
         report["rows"]
             .as_array()
@@ -498,7 +488,7 @@ fn gpu_bench_prints_every_accumulation() {
     if !gpu_available() {
         return;
     }
-    let result = hooke(&[
+    let report = json_report(&[
         "bench",
         "--backend",
         "gpu",
@@ -512,11 +502,7 @@ fn gpu_bench_prints_every_accumulation() {
         "10",
         "--warmup",
         "2",
-        "--format",
-        "json",
     ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     let methods: Vec<&str> = report["rows"]
         .as_array()
         .expect("rows")
@@ -828,7 +814,7 @@ fn paper_fig3_and_fig4_scenes_run_and_render() {
 fn selfcollision_study_prints_missed_pairs_and_cost() {
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = write(dir.path(), "fold.toml", hooke_testkit::FOLDING_CLOTH);
-    let result = hooke(&[
+    let report = json_report(&[
         "selfcollision-study",
         path_str(&scene),
         "--steps",
@@ -841,11 +827,7 @@ fn selfcollision_study_prints_missed_pairs_and_cost() {
         "1",
         "--samples",
         "3",
-        "--format",
-        "json",
     ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     let settings = report["settings"].as_array().expect("settings");
     assert_eq!(settings.len(), 4);
     let exact = settings[0]["exact_pairs"].as_u64().expect("pairs");
@@ -868,7 +850,7 @@ fn gpu_bench_runs_the_gpu_methods_named_and_counts_the_self_collision_passes() {
     if !gpu_available() {
         return;
     }
-    let result = hooke(&[
+    let report = json_report(&[
         "bench",
         "--backend",
         "gpu",
@@ -886,11 +868,7 @@ fn gpu_bench_runs_the_gpu_methods_named_and_counts_the_self_collision_passes() {
         "5",
         "--warmup",
         "2",
-        "--format",
-        "json",
     ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     let rows = report["rows"].as_array().expect("rows");
     let methods: Vec<&str> = rows.iter().filter_map(|r| r["method"].as_str()).collect();
     assert_eq!(methods, ["gather", "scatter/incidence"]);
@@ -918,7 +896,7 @@ fn gpu_bench_runs_the_gpu_methods_named_and_counts_the_self_collision_passes() {
 
 #[test]
 fn bench_shows_the_collision_phase_with_self_collision() {
-    let result = hooke(&[
+    let report = json_report(&[
         "bench",
         "--sizes",
         "32",
@@ -932,11 +910,7 @@ fn bench_shows_the_collision_phase_with_self_collision() {
         "20",
         "--warmup",
         "5",
-        "--format",
-        "json",
     ]);
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
     for row in report["rows"].as_array().expect("rows") {
         assert!(
             row["collision_ms"].as_f64().expect("collision phase") > 0.0,

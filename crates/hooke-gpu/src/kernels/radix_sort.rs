@@ -4,10 +4,10 @@
 //! a third kernel (or by the caller's kernel that writes the keys), and each later pass's by
 //! the scatter before it, into the other of two histograms. The pairs (one `vec2<u32>` each)
 //! go back and forth between two buffers, so the result is in the input's buffer after an even
-//! number of passes and in the other after an odd one. A block is [`BLOCK`] pairs, one workgroup's: a
-//! histogram holds a quarter as many counts as pairs, scanned in slices of digits (one
-//! workgroup each, [`SLICE_COUNTS`] counts at most unless a digit has more), and then each
-//! slice's total.
+//! number of passes and in the other after an odd one. A block is [`BLOCK`] pairs, one
+//! workgroup's: a histogram holds a quarter as many counts as pairs, scanned in slices of
+//! consecutive counts (one workgroup each, [`SLICE_COUNTS`] counts unless that would make more
+//! than [`MAX_SLICES`]), and then each slice's total.
 
 use crate::GpuError;
 use crate::context::GpuContext;
@@ -21,7 +21,7 @@ const DIGITS: u64 = 256;
 /// Pairs per block (`BLOCK` in `digits.wgsl`).
 pub const BLOCK: u32 = 1024;
 /// Counts one workgroup of the scan takes, unless the histogram is larger than
-/// [`MAX_SLICES`] such slices: `SCAN_TILE` in `radix_sort.wgsl`, 4 per invocation.
+/// [`MAX_SLICES`] such slices: `SCAN_TILE` in `radix_sort.wgsl`, 16 or 4 per invocation.
 const SLICE_COUNTS: u32 = 1024;
 /// Slices of the histogram at most: every scatter workgroup scans all their totals in
 /// workgroup memory (`MAX_SLICES` in `radix_sort.wgsl`, 4 KiB of the 16 KiB WebGPU grants).
@@ -78,7 +78,6 @@ fn slice_length(block_count: u32, max_slices: u32) -> u32 {
 /// Buffers and recorded bind groups to sort `count` pairs on their low `key_bits` bits.
 #[derive(Debug)]
 pub struct RadixSort {
-    group: SortGroup,
     /// (key, value) pairs. Input: `pairs[0]`; output: `pairs[passes % 2]`.
     pairs: [wgpu::Buffer; 2],
     block_count: u32,
@@ -101,22 +100,22 @@ pub struct RadixSort {
 }
 
 impl RadixSort {
-    /// Sorts on the low `key_bits` bits, rounded up to a multiple of 8 (one pass each).
-    /// `first_counted`: the caller's kernel that writes the keys also counts the first pass's
-    /// digits into [`RadixSort::histogram`].
+    /// Sorts on the low `key_bits` bits, rounded up to a multiple of 8 (one pass each), in
+    /// workgroups of `group`. `first_counted`: the caller's kernel that writes the keys also
+    /// counts the first pass's digits into [`RadixSort::histogram`], in workgroups of `group`.
     pub fn new(
         context: &GpuContext,
         count: u32,
         key_bits: u32,
         first_counted: bool,
+        group: SortGroup,
     ) -> Result<Self, GpuError> {
-        let group = SortGroup::for_adapter(&context.info);
         Self::with_max_slices(context, count, key_bits, first_counted, group, MAX_SLICES)
     }
 
     /// [`RadixSort::new`] with the histogram in at most `max_slices` slices (tests take fewer
     /// than [`MAX_SLICES`] to make slices of several tiles on few pairs).
-    pub(crate) fn with_max_slices(
+    fn with_max_slices(
         context: &GpuContext,
         count: u32,
         key_bits: u32,
@@ -204,7 +203,6 @@ impl RadixSort {
             })
             .collect();
         Ok(Self {
-            group,
             pairs,
             block_count,
             slices,
@@ -233,12 +231,6 @@ impl RadixSort {
     /// a kernel that writes the keys and counts those digits itself.
     pub fn histogram(&self) -> &wgpu::Buffer {
         &self.histograms[0]
-    }
-
-    /// The size of the sort's workgroups, which a kernel that counts the first digits must
-    /// share.
-    pub fn group(&self) -> SortGroup {
-        self.group
     }
 
     /// Blocks of [`BLOCK`] pairs.
@@ -281,17 +273,17 @@ impl RadixSort {
         keys: &[u32],
         key_bits: u32,
     ) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
-        Self::new(context, keys.len() as u32, key_bits, false)?.sort(context, keys)
+        let group = SortGroup::for_adapter(&context.info);
+        Self::new(context, keys.len() as u32, key_bits, false, group)?.sort(context, keys)
     }
 
     /// Sorts `keys` (as many as the sorter was made for) with their indices as values, and
     /// reads both back.
     fn sort(&self, context: &GpuContext, keys: &[u32]) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
-        let sorter = self;
         let pairs: Vec<[u32; 2]> = keys.iter().zip(0..).map(|(&k, i)| [k, i]).collect();
         context
             .queue
-            .write_buffer(sorter.pairs(), 0, bytemuck::cast_slice(&pairs));
+            .write_buffer(self.pairs(), 0, bytemuck::cast_slice(&pairs));
         let mut encoder = context
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -302,11 +294,11 @@ impl RadixSort {
                 label: Some("radix sort"),
                 timestamp_writes: None,
             });
-            sorter.encode(&mut pass);
+            self.encode(&mut pass);
         }
         context.queue.submit([encoder.finish()]);
         let bytes = 8 * keys.len() as u64;
-        let out = read_back(context, &[(sorter.sorted_pairs(), bytes)])?;
+        let out = read_back(context, &[(self.sorted_pairs(), bytes)])?;
         context.take_error()?;
         let sorted: Vec<[u32; 2]> = bytemuck::pod_collect_to_vec(&out[0]);
         Ok(sorted.into_iter().map(|[k, i]| (k, i)).unzip())

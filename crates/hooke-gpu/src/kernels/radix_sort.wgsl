@@ -4,9 +4,10 @@
 // written), `scan` turns the counts (digit-major, then block) into prefix sums within slices of
 // `slice_length` counts, with each slice's total after them, and `scatter` adds the totals of
 // the slices below and moves every pair to its slot, ranked within its block by its position
-// so equal digits keep their order. Where another pass follows, `scatter` also counts that pass's digits in the
-// blocks the pairs land in, into the other of two histograms (which this pass's `scan` cleared),
-// so later passes need no counting kernel: two dispatches a pass instead of three. Blocks and
+// so equal digits keep their order. Where another pass follows, `scatter` also counts that
+// pass's digits in the blocks the pairs land in, into the other of two histograms (which this
+// pass's `scan` cleared), so later passes need no counting kernel: two dispatches a pass
+// instead of three. Blocks and
 // the histogram are digits.wgsl's. hooke_gpu::radix_sort runs the passes, 8 key bits each.
 
 @group(0) @binding(0) var<uniform> su: SortUniforms;

@@ -6,7 +6,7 @@
 
 use hooke_core::selfcollide::{self, SelfCollision};
 
-use super::radix_sort::{MAX_SLICES, RadixSort, SortGroup};
+use super::radix_sort::{RadixSort, SortGroup};
 use crate::GpuError;
 use crate::context::GpuContext;
 use crate::gpu::{
@@ -56,7 +56,7 @@ impl SelfCollidePass {
         let n = model.vertex_count() as u32;
         let key_bits = selfcollide::key_bits(model.vertex_count());
         // `cell_keys` counts the first digits, in workgroups of the sort's size.
-        let sort = RadixSort::with_max_slices(context, n, key_bits, true, group, MAX_SLICES)?;
+        let sort = RadixSort::new(context, n, key_bits, true, group)?;
         let offsets = storage(
             context,
             "self-collision adjacency offsets",
