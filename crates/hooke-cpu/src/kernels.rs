@@ -51,6 +51,12 @@ impl Stiffness {
         &self.rows[row * self.stride]
     }
 
+    /// The one row of a uniform stiffness.
+    #[inline(always)]
+    fn uniform_row(&self) -> Option<&Block> {
+        (self.stride == 0).then(|| &self.rows[0])
+    }
+
     /// Sets the stiffness of `entries` to zero (springs that tore) in a table of `entry_count`
     /// entries; a uniform stiffness becomes one per entry first.
     pub fn zero_entries(&mut self, entries: impl Iterator<Item = usize>, entry_count: usize) {
@@ -75,19 +81,37 @@ impl Stiffness {
 /// every lane, as interior rows of a regularly numbered mesh do, is stored as its first entry
 /// and loads with one vector load; any other row is stored whole and loads with a gather. That
 /// cuts the index stream of a grid from 32 to 5 bytes per row.
+///
+/// When most rows load lane by lane (an irregular mesh's), every row is stored whole instead,
+/// row by row, each entry as the byte offset of its point (the index times 16, flags kept):
+/// the kernels then read row after row with no lookup, no branch and no shift per lane, which
+/// took the irregular bench mesh's gather step from 0.24 to 0.22 ms (see the README).
 #[derive(Clone, Debug, Default)]
 pub struct IndexRows {
-    /// Per row: its lane-0 entry if contiguous, else its position in `gathered`.
+    /// Per row: its lane-0 entry if contiguous, else its position in `gathered`. Empty when
+    /// the rows are point offsets.
     head: Vec<u32>,
     contiguous: Vec<bool>,
     gathered: Vec<[u32; LANES]>,
+    /// Whether `gathered` holds every row as point offsets.
+    point_offsets: bool,
+    mask: u32,
 }
 
+/// Bytes of a [`Point`]: an index times this is its point's byte offset.
+const POINT_BYTES: u32 = std::mem::size_of::<Point>() as u32;
+
 impl IndexRows {
-    /// Flags rows whose masked indices run consecutively and stay below `limit`.
-    pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize) -> Self {
-        let mut table = Self::default();
-        for r in rows {
+    /// Flags rows whose masked indices run consecutively and stay below `limit`. With
+    /// `points`, stores point offsets instead when fewer than half do and every offset fits
+    /// below the flags: only for tables the kernels read from points (a table of offsets has
+    /// no rows to load from the axes).
+    pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize, points: bool) -> Self {
+        let mut table = Self {
+            mask,
+            ..Self::default()
+        };
+        for r in &rows {
             let first = (r[0] & mask) as usize;
             let contiguous = first + LANES <= limit
                 && (0..LANES).all(|lane| {
@@ -98,22 +122,33 @@ impl IndexRows {
                 table.head.push(r[0]);
             } else {
                 table.head.push(table.gathered.len() as u32);
-                table.gathered.push(r);
+                table.gathered.push(*r);
             }
+        }
+        let offsets_fit = limit as u64 * u64::from(POINT_BYTES) <= u64::from(mask) + 1;
+        if points && table.mostly_gathered() && offsets_fit {
+            let offset = |entry: u32| ((entry & mask) * POINT_BYTES) | (entry & !mask);
+            table.gathered = rows.into_iter().map(|r| r.map(offset)).collect();
+            table.head = Vec::new();
+            table.point_offsets = true;
         }
         table
     }
 
     pub fn len(&self) -> usize {
-        self.head.len()
+        self.contiguous.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.head.is_empty()
+        self.contiguous.is_empty()
     }
 
     /// The 8 entries of `row`.
     pub fn row(&self, row: usize) -> [u32; LANES] {
+        if self.point_offsets {
+            let mask = self.mask;
+            return self.gathered[row].map(|e| ((e & mask) / POINT_BYTES) | (e & !mask));
+        }
         let head = self.head[row];
         if self.contiguous[row] {
             std::array::from_fn(|lane| head + lane as u32)
@@ -122,13 +157,22 @@ impl IndexRows {
         }
     }
 
+    /// Every row as point offsets (see the type's docs), if stored so.
+    #[inline(always)]
+    pub fn point_offsets(&self) -> Option<&[[u32; LANES]]> {
+        self.point_offsets.then_some(self.gathered.as_slice())
+    }
+
     pub fn bytes(&self) -> usize {
+        if self.point_offsets {
+            return std::mem::size_of_val(self.gathered.as_slice());
+        }
         std::mem::size_of_val(self.head.as_slice())
             + self.contiguous.len()
             + std::mem::size_of_val(self.gathered.as_slice())
     }
 
-    /// Share of rows that load contiguously.
+    /// Share of rows whose indices run consecutively.
     pub fn contiguous_share(&self) -> f64 {
         self.contiguous.iter().filter(|c| **c).count() as f64 / self.len().max(1) as f64
     }
@@ -198,6 +242,12 @@ impl ValueRows {
         } else {
             self.whole[self.head[row] as usize]
         }
+    }
+
+    /// Every row, when all are stored whole.
+    #[inline(always)]
+    fn whole_rows(&self) -> Option<&[Block]> {
+        self.head.is_empty().then_some(self.whole.as_slice())
     }
 
     #[inline(always)]
@@ -390,8 +440,13 @@ fn load_positions_row<S: Simd, const POINTS: bool>(
     rows: &IndexRows,
     row: usize,
 ) -> [S::V; 3] {
-    match positions.points {
-        Some(points) if POINTS && !rows.contiguous[row] => {
+    match (positions.points, rows.point_offsets()) {
+        (Some(points), Some(offsets)) if POINTS => {
+            // SAFETY: `CpuSolver::new` builds every vertex index below `padded_len`, the length
+            // of the points, and `IndexRows::new` made their offsets from them.
+            unsafe { points.gather_points_at(simd, &offsets[row], u32::MAX) }
+        }
+        (Some(points), None) if POINTS && !rows.contiguous[row] => {
             let index = &rows.gathered[rows.head[row] as usize];
             // SAFETY: `CpuSolver::new` builds every vertex index below `padded_len`, the length
             // of the points.
@@ -447,7 +502,45 @@ fn gather_slice<S: Simd, const POINTS: bool>(
         simd.load(positions.block(2, slice)),
     ];
     let mut force = [simd.splat(0.0); 3];
-    for row in table.slices.rows(slice) {
+    let rows = table.slices.rows(slice);
+    if POINTS
+        && let (Some(points), Some(offsets)) = (positions.points, table.neighbor.point_offsets())
+    {
+        // An irregular mesh's rows, read in order: zipped, without bounds checks per row.
+        let offsets = &offsets[rows.clone()];
+        let add = |force: [S::V; 3], f: [S::V; 3]| {
+            [
+                simd.add(force[0], f[0]),
+                simd.add(force[1], f[1]),
+                simd.add(force[2], f[2]),
+            ]
+        };
+        if let (Some(rest), Some(stiffness)) = (
+            table.rest_length.whole_rows(),
+            table.stiffness.uniform_row(),
+        ) {
+            let stiffness = simd.load(stiffness);
+            for (offsets, rest) in offsets.iter().zip(&rest[rows]) {
+                // SAFETY: as in `load_positions_row`.
+                let neighbor = unsafe { points.gather_points_at(simd, offsets, u32::MAX) };
+                let f = spring_force_rows(simd, own, neighbor, stiffness, simd.load(rest));
+                force = add(force, f);
+            }
+        } else {
+            for (row, offsets) in rows.zip(offsets) {
+                // SAFETY: as in `load_positions_row`.
+                let neighbor = unsafe { points.gather_points_at(simd, offsets, u32::MAX) };
+                let stiffness = simd.load(table.stiffness.row(row));
+                let rest = table.rest_length.load(simd, row);
+                force = add(
+                    force,
+                    spring_force_rows(simd, own, neighbor, stiffness, rest),
+                );
+            }
+        }
+        return force;
+    }
+    for row in rows {
         let neighbor = load_positions_row::<S, POINTS>(simd, positions, &table.neighbor, row);
         let stiffness = simd.load(table.stiffness.row(row));
         let f = spring_force_rows(
@@ -501,7 +594,20 @@ fn accumulate_points_slice<S: Simd>(
     slice: usize,
 ) -> [S::V; 3] {
     let mut force = [simd.splat(0.0); 3];
-    for row in table.slices.rows(slice) {
+    let rows = table.slices.rows(slice);
+    if let Some(offsets) = table.entry.point_offsets() {
+        for offsets in &offsets[rows] {
+            // SAFETY: as below, and `IndexRows::new` made the offsets from those slots.
+            let [fx, fy, fz] = unsafe { points.gather_points_at(simd, offsets, !B_END) };
+            force = [
+                simd.add(force[0], simd.flip_sign(fx, offsets)),
+                simd.add(force[1], simd.flip_sign(fy, offsets)),
+                simd.add(force[2], simd.flip_sign(fz, offsets)),
+            ];
+        }
+        return force;
+    }
+    for row in rows {
         let index = table.entry.row(row);
         // SAFETY: `CpuSolver::new` builds every spring slot (masked) below the buffer's
         // length: the springs' rows and one row of zeros for padding.
@@ -844,6 +950,30 @@ fn spring_rows<S: Simd, const POINTS: bool>(
             }
         }
         ForceRows::Points(rows) => {
+            if POINTS
+                && let (Some(points), Some(a), Some(b)) = (
+                    positions.points,
+                    springs.a.point_offsets(),
+                    springs.b.point_offsets(),
+                )
+            {
+                // An irregular mesh's rows, read in order: zipped, without bounds checks.
+                let range = first_row..first_row + rows.len();
+                let ends = a[range.clone()].iter().zip(&b[range.clone()]);
+                for ((row, (a, b)), out) in range.zip(ends).zip(rows) {
+                    // SAFETY: as in `load_positions_row`.
+                    let (a, b) = unsafe {
+                        (
+                            points.gather_points_at(simd, a, u32::MAX),
+                            points.gather_points_at(simd, b, u32::MAX),
+                        )
+                    };
+                    let stiffness = simd.load(springs.stiffness.row(row));
+                    let rest = springs.rest_length.load(simd, row);
+                    simd.store_points(spring_force_rows(simd, a, b, stiffness, rest), out);
+                }
+                return;
+            }
             for (k, out) in rows.iter_mut().enumerate() {
                 let force = spring_row_force::<S, POINTS>(simd, springs, positions, first_row + k);
                 simd.store_points(force, out);

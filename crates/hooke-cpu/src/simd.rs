@@ -35,6 +35,18 @@ pub trait Simd: Copy {
         index: &[u32; LANES],
         mask: u32,
     ) -> [Self::V; 3];
+    /// The points at byte offsets `offsets[lane] & mask` from `points`, as x, y and z: as
+    /// [`Simd::gather_points`] with the indices already times 16, which saves a shift a lane.
+    ///
+    /// # Safety
+    /// Every masked offset must be a multiple of 16 below the readable bytes at `points`, and
+    /// no thread may write the points read during the call.
+    unsafe fn gather_points_at(
+        self,
+        points: *const Point,
+        offsets: &[u32; LANES],
+        mask: u32,
+    ) -> [Self::V; 3];
     /// Stores lane `k` of `x`, `y` and `z` as `out[k]`, its fourth word zero.
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
@@ -87,6 +99,17 @@ impl Simd for Portable {
         // SAFETY: the caller guarantees every masked index is in bounds and not written.
         let at = |lane: usize| unsafe { *points.add((index[lane] & mask) as usize) };
         std::array::from_fn(|axis| std::array::from_fn(|lane| at(lane)[axis]))
+    }
+    #[inline(always)]
+    unsafe fn gather_points_at(
+        self,
+        points: *const Point,
+        offsets: &[u32; LANES],
+        mask: u32,
+    ) -> [Block; 3] {
+        let index = offsets.map(|offset| (offset & mask) / std::mem::size_of::<Point>() as u32);
+        // SAFETY: the caller guarantees every masked offset is a point in bounds.
+        unsafe { self.gather_points(points, &index, u32::MAX) }
     }
     #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
@@ -189,6 +212,36 @@ mod avx2 {
     // the kernels using these methods are compiled with AVX2 enabled (see `kernels::dispatch`),
     // so the intrinsics are supported and inline. Loads and stores go through references to
     // 8-float blocks, which are exactly 32 readable/writable bytes, or to 8 points, 128 bytes.
+    /// The 8 points at `at(0..8)`, as x, y and z. One 16-byte load per lane, then a 4x4
+    /// transpose in each 128-bit half: 8 loads and 11 shuffles where three gathers by lane
+    /// take 24 loads and 21 inserts.
+    ///
+    /// # Safety
+    /// Each `at(lane)` must point at 16 readable bytes, and AVX2 must be enabled.
+    #[inline(always)]
+    unsafe fn transpose_points(at: impl Fn(usize) -> *const Point) -> [__m256; 3] {
+        // SAFETY: the caller's guarantee.
+        unsafe {
+            let pair = |low: usize, high: usize| {
+                _mm256_insertf128_ps::<1>(
+                    _mm256_castps128_ps256(_mm_loadu_ps(at(low).cast())),
+                    _mm_loadu_ps(at(high).cast()),
+                )
+            };
+            // Lanes (0, 4), (1, 5), (2, 6), (3, 7): each half transposes on its own.
+            let (a0, a1, a2, a3) = (pair(0, 4), pair(1, 5), pair(2, 6), pair(3, 7));
+            let xy01 = _mm256_unpacklo_ps(a0, a1);
+            let zw01 = _mm256_unpackhi_ps(a0, a1);
+            let xy23 = _mm256_unpacklo_ps(a2, a3);
+            let zw23 = _mm256_unpackhi_ps(a2, a3);
+            [
+                _mm256_shuffle_ps::<0x44>(xy01, xy23),
+                _mm256_shuffle_ps::<0xEE>(xy01, xy23),
+                _mm256_shuffle_ps::<0x44>(zw01, zw23),
+            ]
+        }
+    }
+
     impl Simd for Avx2 {
         type V = __m256;
         #[inline(always)]
@@ -228,32 +281,19 @@ mod avx2 {
         ) -> [__m256; 3] {
             // SAFETY: the caller guarantees every masked index is in bounds, and each point is
             // 16 readable bytes.
+            unsafe { transpose_points(|lane| points.add((index[lane] & mask) as usize)) }
+        }
+        #[inline(always)]
+        unsafe fn gather_points_at(
+            self,
+            points: *const Point,
+            offsets: &[u32; LANES],
+            mask: u32,
+        ) -> [__m256; 3] {
+            let bytes = points.cast::<u8>();
+            // SAFETY: the caller guarantees every masked offset is a point in bounds.
             unsafe {
-                // One 16-byte load per lane, then a 4x4 transpose in each 128-bit half: 8
-                // loads and 11 shuffles where three gathers by lane take 24 loads and 21
-                // inserts. (A macro, not a closure: closures would not inline into the AVX2
-                // functions.)
-                macro_rules! pair {
-                    ($low:literal, $high:literal) => {
-                        _mm256_insertf128_ps::<1>(
-                            _mm256_castps128_ps256(_mm_loadu_ps(
-                                points.add((index[$low] & mask) as usize).cast(),
-                            )),
-                            _mm_loadu_ps(points.add((index[$high] & mask) as usize).cast()),
-                        )
-                    };
-                }
-                // Lanes (0, 4), (1, 5), (2, 6), (3, 7): each half transposes on its own.
-                let (a0, a1, a2, a3) = (pair!(0, 4), pair!(1, 5), pair!(2, 6), pair!(3, 7));
-                let xy01 = _mm256_unpacklo_ps(a0, a1);
-                let zw01 = _mm256_unpackhi_ps(a0, a1);
-                let xy23 = _mm256_unpacklo_ps(a2, a3);
-                let zw23 = _mm256_unpackhi_ps(a2, a3);
-                [
-                    _mm256_shuffle_ps::<0x44>(xy01, xy23),
-                    _mm256_shuffle_ps::<0xEE>(xy01, xy23),
-                    _mm256_shuffle_ps::<0x44>(zw01, zw23),
-                ]
+                transpose_points(|lane| bytes.add((offsets[lane] & mask) as usize).cast::<Point>())
             }
         }
         #[inline(always)]

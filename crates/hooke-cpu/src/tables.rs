@@ -75,6 +75,8 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
             into_blocks(entries.iter().map(|e| e.0).collect()),
             u32::MAX,
             numbering.padded_len,
+            // The force pass reads the positions as points when most rows are gathered.
+            true,
         ),
         rest_length: ValueRows::new(into_blocks(entries.iter().map(|e| e.1).collect())),
         stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
@@ -172,11 +174,34 @@ pub(crate) fn scatter_tables(
     let (ends, order, slot_of) = scatter_order(model, numbering);
     let rows = model.spring_count().div_ceil(LANES);
     let zero_slot = (rows * LANES) as u32;
+    let adjacency = &model.adjacency;
+    let (slices, entries) = Slices::build(
+        model,
+        numbering,
+        |k, e| {
+            let spring = adjacency.springs[e] as usize;
+            let is_b_end = ends[spring][1] as usize == k;
+            slot_of[spring] | if is_b_end { B_END } else { 0 }
+        },
+        |_| zero_slot,
+    );
+    let incidence = IncidenceTable {
+        slices,
+        entry: IndexRows::new(
+            into_blocks(entries),
+            !B_END,
+            zero_slot as usize + LANES,
+            true,
+        ),
+    };
+    // The force pass reads the positions as points when the spring forces are points.
+    let points = incidence.entry.mostly_gathered();
     let end_rows = |end: usize| {
         IndexRows::new(
             into_blocks(order.iter().map(|&s| ends[s as usize][end]).collect()),
             u32::MAX,
             numbering.padded_len,
+            points,
         )
     };
     let springs = SpringTable {
@@ -194,21 +219,6 @@ pub(crate) fn scatter_tables(
                 .map(|&s| model.stiffnesses[s as usize] as f32)
                 .collect()
         }),
-    };
-    let adjacency = &model.adjacency;
-    let (slices, entries) = Slices::build(
-        model,
-        numbering,
-        |k, e| {
-            let spring = adjacency.springs[e] as usize;
-            let is_b_end = ends[spring][1] as usize == k;
-            slot_of[spring] | if is_b_end { B_END } else { 0 }
-        },
-        |_| zero_slot,
-    );
-    let incidence = IncidenceTable {
-        slices,
-        entry: IndexRows::new(into_blocks(entries), !B_END, zero_slot as usize + LANES),
     };
     (springs, incidence)
 }
@@ -269,6 +279,54 @@ mod tests {
             assert_eq!(rows, springs.a.len() + 1);
             assert_eq!(spring_forces.bytes(), rows * LANES * bytes_per_slot);
         }
+    }
+
+    /// An irregular mesh's rows are stored as point offsets, which read back as the same
+    /// indices and flags; a grid's are not.
+    #[test]
+    fn irregular_rows_are_point_offsets_that_read_back_as_their_indices() {
+        let grid = table_of(MeshSection::unit_grid(64, 64), 64 * 64);
+        assert!(grid.neighbor.point_offsets().is_none());
+        let Topology::Scatter {
+            springs, incidence, ..
+        } = topology_of(MeshSection::unit_irregular(4096, 1), 4096, Method::Scatter)
+        else {
+            unreachable!("scatter builds scatter tables");
+        };
+        let irregular = table_of(MeshSection::unit_irregular(4096, 1), 4096);
+        for (rows, mask, limit) in [
+            (&irregular.neighbor, u32::MAX, 4096),
+            (&springs.a, u32::MAX, 4096),
+            (&springs.b, u32::MAX, 4096),
+            (&incidence.entry, !B_END, (springs.a.len() + 1) * LANES),
+        ] {
+            let offsets = rows
+                .point_offsets()
+                .expect("an irregular mesh's rows are offsets");
+            assert_eq!(offsets.len(), rows.len());
+            let mut flagged = 0;
+            for (row, offsets) in offsets.iter().enumerate() {
+                let entries = rows.row(row);
+                for (offset, entry) in offsets.iter().zip(entries) {
+                    assert_eq!(offset & mask, (entry & mask) * 16);
+                    assert_eq!(offset & !mask, entry & !mask);
+                    assert!(((entry & mask) as usize) < limit);
+                    flagged += usize::from(entry & !mask != 0);
+                }
+            }
+            // The incidence rows' far ends keep their flag.
+            assert_eq!(flagged > 0, mask != u32::MAX);
+        }
+        // Offsets that would reach the flag bits are not used.
+        let rows = vec![[0, 9, 3, 1, 7, 2, 5, 4]; 4];
+        assert!(
+            IndexRows::new(rows.clone(), !B_END, 1 << 27, true)
+                .point_offsets()
+                .is_some()
+        );
+        let too_far = IndexRows::new(rows, !B_END, (1 << 27) + 1, true);
+        assert!(too_far.point_offsets().is_none());
+        assert_eq!(too_far.row(2), [0, 9, 3, 1, 7, 2, 5, 4]);
     }
 
     #[test]

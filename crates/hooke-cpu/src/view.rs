@@ -89,6 +89,21 @@ impl<'a> Floats<'a> {
 }
 
 impl Points<'_> {
+    /// The points at byte offsets `offsets[lane] & mask`, as x, y and z.
+    ///
+    /// # Safety
+    /// Every masked offset must be a multiple of 16 below 16 times the view's length.
+    #[inline(always)]
+    pub unsafe fn gather_points_at<S: Simd>(
+        &self,
+        simd: S,
+        offsets: &[u32; LANES],
+        mask: u32,
+    ) -> [S::V; 3] {
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { simd.gather_points_at(self.start, offsets, mask) }
+    }
+
     /// `points[index[lane] & mask]` per lane, as x, y and z.
     ///
     /// # Safety
