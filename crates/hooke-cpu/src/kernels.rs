@@ -108,30 +108,35 @@ impl IndexRows {
     /// below the flags: only for tables the kernels read from points (a table of offsets has
     /// no rows to load from the axes).
     pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize, points: bool) -> Self {
+        let contiguous: Vec<bool> = rows
+            .iter()
+            .map(|r| {
+                let first = (r[0] & mask) as usize;
+                first + LANES <= limit
+                    && (0..LANES).all(|lane| {
+                        (r[lane] & mask) as usize == first + lane && r[lane] & !mask == r[0] & !mask
+                    })
+            })
+            .collect();
         let mut table = Self {
+            contiguous,
             mask,
             ..Self::default()
         };
-        for r in &rows {
-            let first = (r[0] & mask) as usize;
-            let contiguous = first + LANES <= limit
-                && (0..LANES).all(|lane| {
-                    (r[lane] & mask) as usize == first + lane && r[lane] & !mask == r[0] & !mask
-                });
-            table.contiguous.push(contiguous);
+        let offsets_fit = limit as u64 * u64::from(POINT_BYTES) <= u64::from(mask) + 1;
+        if points && table.mostly_gathered() && offsets_fit {
+            let offset = |entry: u32| ((entry & mask) * POINT_BYTES) | (entry & !mask);
+            table.gathered = rows.into_iter().map(|r| r.map(offset)).collect();
+            table.point_offsets = true;
+            return table;
+        }
+        for (r, &contiguous) in rows.iter().zip(&table.contiguous) {
             if contiguous {
                 table.head.push(r[0]);
             } else {
                 table.head.push(table.gathered.len() as u32);
                 table.gathered.push(*r);
             }
-        }
-        let offsets_fit = limit as u64 * u64::from(POINT_BYTES) <= u64::from(mask) + 1;
-        if points && table.mostly_gathered() && offsets_fit {
-            let offset = |entry: u32| ((entry & mask) * POINT_BYTES) | (entry & !mask);
-            table.gathered = rows.into_iter().map(|r| r.map(offset)).collect();
-            table.head = Vec::new();
-            table.point_offsets = true;
         }
         table
     }

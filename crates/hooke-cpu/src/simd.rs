@@ -41,12 +41,17 @@ pub trait Simd: Copy {
     /// # Safety
     /// Every masked offset must be a multiple of 16 below the readable bytes at `points`, and
     /// no thread may write the points read during the call.
+    #[inline(always)]
     unsafe fn gather_points_at(
         self,
         points: *const Point,
         offsets: &[u32; LANES],
         mask: u32,
-    ) -> [Self::V; 3];
+    ) -> [Self::V; 3] {
+        let index = offsets.map(|offset| (offset & mask) / std::mem::size_of::<Point>() as u32);
+        // SAFETY: the caller guarantees every masked offset is a point in bounds.
+        unsafe { self.gather_points(points, &index, u32::MAX) }
+    }
     /// Stores lane `k` of `x`, `y` and `z` as `out[k]`, its fourth word zero.
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
@@ -99,17 +104,6 @@ impl Simd for Portable {
         // SAFETY: the caller guarantees every masked index is in bounds and not written.
         let at = |lane: usize| unsafe { *points.add((index[lane] & mask) as usize) };
         std::array::from_fn(|axis| std::array::from_fn(|lane| at(lane)[axis]))
-    }
-    #[inline(always)]
-    unsafe fn gather_points_at(
-        self,
-        points: *const Point,
-        offsets: &[u32; LANES],
-        mask: u32,
-    ) -> [Block; 3] {
-        let index = offsets.map(|offset| (offset & mask) / std::mem::size_of::<Point>() as u32);
-        // SAFETY: the caller guarantees every masked offset is a point in bounds.
-        unsafe { self.gather_points(points, &index, u32::MAX) }
     }
     #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
@@ -208,10 +202,6 @@ mod avx2 {
         vendor.as_flattened() == b"AuthenticAMD"
     }
 
-    // SAFETY (every `unsafe` block below): an `Avx2` value exists only if the CPU has AVX2, and
-    // the kernels using these methods are compiled with AVX2 enabled (see `kernels::dispatch`),
-    // so the intrinsics are supported and inline. Loads and stores go through references to
-    // 8-float blocks, which are exactly 32 readable/writable bytes, or to 8 points, 128 bytes.
     /// The 8 points at `at(0..8)`, as x, y and z. One 16-byte load per lane, then a 4x4
     /// transpose in each 128-bit half: 8 loads and 11 shuffles where three gathers by lane
     /// take 24 loads and 21 inserts.
@@ -242,6 +232,10 @@ mod avx2 {
         }
     }
 
+    // SAFETY (every `unsafe` block below): an `Avx2` value exists only if the CPU has AVX2, and
+    // the kernels using these methods are compiled with AVX2 enabled (see `kernels::dispatch`),
+    // so the intrinsics are supported and inline. Loads and stores go through references to
+    // 8-float blocks, which are exactly 32 readable/writable bytes, or to 8 points, 128 bytes.
     impl Simd for Avx2 {
         type V = __m256;
         #[inline(always)]
