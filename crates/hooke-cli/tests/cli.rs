@@ -24,6 +24,25 @@ fn json_report(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&result.stdout).expect("json")
 }
 
+/// `hooke bench --backend gpu` on one grid of `side` vertices a side (no irregular or shuffled
+/// mesh, 2 warm-up steps) with `options`, as its JSON report.
+fn gpu_grid_bench(side: &str, options: &[&str]) -> serde_json::Value {
+    let grid = [
+        "bench",
+        "--backend",
+        "gpu",
+        "--sizes",
+        side,
+        "--irregular",
+        "0",
+        "--shuffled",
+        "0",
+        "--warmup",
+        "2",
+    ];
+    json_report(&[&grid[..], options].concat())
+}
+
 fn write(dir: &Path, name: &str, contents: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, contents).expect("write file");
@@ -488,21 +507,7 @@ fn gpu_bench_prints_every_accumulation() {
     if !gpu_available() {
         return;
     }
-    let report = json_report(&[
-        "bench",
-        "--backend",
-        "gpu",
-        "--sizes",
-        "16",
-        "--irregular",
-        "0",
-        "--shuffled",
-        "0",
-        "--steps",
-        "10",
-        "--warmup",
-        "2",
-    ]);
+    let report = gpu_grid_bench("16", &["--steps", "10"]);
     let methods: Vec<&str> = report["rows"]
         .as_array()
         .expect("rows")
@@ -850,25 +855,17 @@ fn gpu_bench_runs_the_gpu_methods_named_and_counts_the_self_collision_passes() {
     if !gpu_available() {
         return;
     }
-    let report = json_report(&[
-        "bench",
-        "--backend",
-        "gpu",
-        "--gpu-methods",
-        "gather,incidence",
-        "--sizes",
+    let report = gpu_grid_bench(
         "32",
-        "--irregular",
-        "0",
-        "--shuffled",
-        "0",
-        "--self-collision",
-        "2",
-        "--steps",
-        "5",
-        "--warmup",
-        "2",
-    ]);
+        &[
+            "--gpu-methods",
+            "gather,incidence",
+            "--self-collision",
+            "2",
+            "--steps",
+            "5",
+        ],
+    );
     let rows = report["rows"].as_array().expect("rows");
     let methods: Vec<&str> = rows.iter().filter_map(|r| r["method"].as_str()).collect();
     assert_eq!(methods, ["gather", "scatter/incidence"]);
