@@ -56,7 +56,7 @@ pub struct GpuCollider {
     pub script: [f32; 4],
 }
 
-/// One kind of spring of a stencil (`StencilEntry` in `gather_integrate.wgsl`, see
+/// One kind of spring of a stencil (`StencilEntry` in `common.wgsl`, see
 /// [`crate::stencil`]): the offset from a vertex's index to its neighbour's, the rest length
 /// and the stiffness.
 #[repr(C)]
@@ -71,7 +71,7 @@ pub struct GpuStencilEntry {
 /// Places for kinds in [`GpuStencil`] (at most [`crate::stencil::MAX_KINDS`] are used).
 pub const STENCIL_KINDS: usize = 24;
 
-/// A stencil's kinds (`Stencil` in `gather_integrate.wgsl`): the first `len` are used.
+/// A stencil's kinds (`Stencil` in `common.wgsl`): the first `len` are used.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct GpuStencil {

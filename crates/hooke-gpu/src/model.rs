@@ -5,7 +5,7 @@ use hooke_core::{Material, Model};
 
 use crate::context::{GpuContext, GpuError};
 use crate::gpu::{self, storage, zeroed};
-use crate::layout::{GatherEntry, GpuSpring, StepUniforms};
+use crate::layout::{GatherEntry, GpuSpring, GpuStencil, StepUniforms};
 use crate::methods::{Accumulation, GpuMethod};
 use crate::stencil::Stencil;
 
@@ -33,15 +33,34 @@ pub enum GpuTopology {
         rows: wgpu::Buffer,
         entries: wgpu::Buffer,
     },
-    /// The gather of a structured mesh whose records never change: the stencil and its kinds
-    /// as the kernel binds them (`GpuStencil`); the masks travel in [`GpuModel::scales`]. No
-    /// CSR rows: [`GpuModel::let_records_change`] builds them when a snapshot's tears need them.
-    Stencil {
-        stencil: Stencil,
-        kinds: wgpu::Buffer,
+    /// The gather of a structured mesh whose records never change. No CSR rows:
+    /// [`GpuModel::let_records_change`] builds them when a snapshot's tears need them.
+    Stencil(StencilKinds),
+    /// One record per spring, and for the atomic accumulations of a structured mesh whose
+    /// records never change the stencil their kernels read instead.
+    Scatter {
+        springs: wgpu::Buffer,
+        stencil: Option<StencilKinds>,
     },
-    /// One record per spring.
-    Scatter { springs: wgpu::Buffer },
+}
+
+/// A structured mesh's stencil and its kinds as the kernels bind them (`GpuStencil`); the
+/// masks travel in [`GpuModel::scales`].
+#[derive(Debug)]
+pub struct StencilKinds {
+    pub stencil: Stencil,
+    pub kinds: wgpu::Buffer,
+}
+
+impl StencilKinds {
+    /// The model's stencil, if it has one (see [`Stencil::of`]), and its bytes.
+    fn of(context: &GpuContext, model: &Model) -> Option<(Self, u64)> {
+        let stencil = Stencil::of(model)?;
+        let kinds = stencil.table();
+        let bytes = std::mem::size_of_val(&kinds) as u64;
+        let kinds = gpu::uniform(context, &kinds);
+        Some((Self { stencil, kinds }, bytes))
+    }
 }
 
 /// The model on the GPU: step uniforms, per-vertex integration constants, springs, and the
@@ -102,24 +121,27 @@ impl GpuModel {
         );
         let none = wgpu::BufferUsages::empty();
         let records_change = model.tearing.is_some();
-        let stencil = (method == GpuMethod::Gather && !records_change)
-            .then(|| Stencil::of(model))
+        // Kernels that can read a stencil instead of records that never change.
+        let reads_stencil = !records_change
+            && matches!(
+                method,
+                GpuMethod::Gather
+                    | GpuMethod::Scatter(Accumulation::AtomicF32 | Accumulation::AtomicFixed)
+            );
+        let stencil = reads_stencil
+            .then(|| StencilKinds::of(context, model))
             .flatten();
         let (topology, topology_bytes) = match (method, stencil) {
-            (GpuMethod::Gather, Some(stencil)) => {
-                let kinds = stencil.table();
-                let bytes = std::mem::size_of_val(&kinds) as u64;
-                let kinds = gpu::uniform(context, &kinds);
-                (GpuTopology::Stencil { stencil, kinds }, bytes)
-            }
+            (GpuMethod::Gather, Some((stencil, bytes))) => (GpuTopology::Stencil(stencil), bytes),
             (GpuMethod::Gather, None) => gather_adjacency(context, model)?,
-            (GpuMethod::Scatter(_), _) => {
+            (GpuMethod::Scatter(_), stencil) => {
                 let springs = spring_records(model);
                 gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
-                let bytes = bytes_of(&springs);
+                let bytes = bytes_of(&springs) + stencil.as_ref().map_or(0, |(_, bytes)| *bytes);
                 // Tearing's restore rewrites the records.
                 let springs = storage(context, "springs", &springs, wgpu::BufferUsages::COPY_DST);
-                (GpuTopology::Scatter { springs }, bytes)
+                let stencil = stencil.map(|(stencil, _)| stencil);
+                (GpuTopology::Scatter { springs, stencil }, bytes)
             }
         };
         let triangles: Vec<[u32; 4]> = model
@@ -204,10 +226,7 @@ impl GpuModel {
             gravity,
             ..
         } = self.material;
-        let stencil = match &self.topology {
-            GpuTopology::Stencil { stencil, .. } => Some(stencil),
-            _ => None,
-        };
+        let stencil = self.stencil().map(|s| &s.stencil);
         let scales: Vec<[f32; 4]> = self
             .model
             .masses
@@ -262,14 +281,32 @@ impl GpuModel {
     }
 
     /// Lets the force records' stiffness be rewritten from now on (a restored snapshot's
-    /// tears): a stencil gives way to the gather's CSR rows, and kernels built after this read
-    /// each record's stiffness ([`GpuModel::records_change`]).
+    /// tears): a stencil gives way to the gather's CSR rows or scatter's records, and kernels
+    /// built after this read each record's stiffness ([`GpuModel::records_change`]).
     pub fn let_records_change(&mut self, context: &GpuContext) -> Result<(), GpuError> {
-        if matches!(self.topology, GpuTopology::Stencil { .. }) {
-            (self.topology, self.topology_bytes) = gather_adjacency(context, &self.model)?;
+        match &mut self.topology {
+            GpuTopology::Stencil(_) => {
+                (self.topology, self.topology_bytes) = gather_adjacency(context, &self.model)?;
+            }
+            GpuTopology::Scatter { stencil, .. } => {
+                if stencil.take().is_some() {
+                    self.topology_bytes -= std::mem::size_of::<GpuStencil>() as u64;
+                }
+            }
+            GpuTopology::Gather { .. } => {}
         }
         self.records_change = true;
         Ok(())
+    }
+
+    /// The stencil the kernels read, if the model is a structured mesh whose records never
+    /// change and the method reads one.
+    pub fn stencil(&self) -> Option<&StencilKinds> {
+        match &self.topology {
+            GpuTopology::Stencil(stencil) => Some(stencil),
+            GpuTopology::Scatter { stencil, .. } => stencil.as_ref(),
+            GpuTopology::Gather { .. } => None,
+        }
     }
 
     /// The buffer of the force records (gather entries or spring records); none for a
@@ -277,8 +314,8 @@ impl GpuModel {
     pub fn force_records(&self) -> Option<&wgpu::Buffer> {
         match &self.topology {
             GpuTopology::Gather { entries, .. } => Some(entries),
-            GpuTopology::Scatter { springs } => Some(springs),
-            GpuTopology::Stencil { .. } => None,
+            GpuTopology::Scatter { springs, .. } => Some(springs),
+            GpuTopology::Stencil(_) => None,
         }
     }
 
@@ -287,7 +324,7 @@ impl GpuModel {
     pub fn stiffness_words(&self) -> Vec<[u32; 2]> {
         let model = &self.model;
         match &self.topology {
-            GpuTopology::Gather { .. } | GpuTopology::Stencil { .. } => {
+            GpuTopology::Gather { .. } | GpuTopology::Stencil(_) => {
                 const WORDS: usize = std::mem::size_of::<GatherEntry>() / 4;
                 let stiffness = std::mem::offset_of!(GatherEntry, stiffness) / 4;
                 let mut words = vec![[u32::MAX; 2]; model.spring_count()];
@@ -320,12 +357,12 @@ impl GpuModel {
                 bytemuck::cast_slice(&gather_entries(&torn, &valence_sorted_order(&torn))).to_vec(),
                 entries,
             ),
-            GpuTopology::Scatter { springs } => (
+            GpuTopology::Scatter { springs, .. } => (
                 bytemuck::cast_slice(&spring_records(&torn)).to_vec(),
                 springs,
             ),
             // No records: a stencil's never change (see `let_records_change`).
-            GpuTopology::Stencil { .. } => return,
+            GpuTopology::Stencil(_) => return,
         };
         context.queue.write_buffer(records, 0, &bytes);
     }
@@ -333,8 +370,8 @@ impl GpuModel {
     /// The springs buffer of the scatter method.
     pub fn springs(&self) -> Option<&wgpu::Buffer> {
         match &self.topology {
-            GpuTopology::Scatter { springs } => Some(springs),
-            GpuTopology::Gather { .. } | GpuTopology::Stencil { .. } => None,
+            GpuTopology::Scatter { springs, .. } => Some(springs),
+            GpuTopology::Gather { .. } | GpuTopology::Stencil(_) => None,
         }
     }
 }

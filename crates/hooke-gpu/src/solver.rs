@@ -27,7 +27,7 @@ use crate::kernels::balls::Balls;
 use crate::kernels::collide::Collide;
 use crate::kernels::external::External;
 use crate::kernels::force_springs::ForceSprings;
-use crate::kernels::gather_integrate::{GatherIntegrate, GatherVariant};
+use crate::kernels::gather_integrate::GatherIntegrate;
 use crate::kernels::handles::Handles;
 use crate::kernels::integrate::Integrate;
 use crate::kernels::self_collide::SelfCollidePass;
@@ -54,6 +54,65 @@ enum Forces {
         forces: wgpu::Buffer,
         integrate: Integrate,
     },
+}
+
+impl Forces {
+    /// The passes of `model.method`, reading the model's stencil where it has one.
+    fn new(
+        ctx: &GpuContext,
+        model: &GpuModel,
+        state: &GpuState,
+        extra_forces: &wgpu::Buffer,
+    ) -> Result<Self, GpuError> {
+        let n = model.model.vertex_count();
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        Ok(match model.method {
+            GpuMethod::Gather => {
+                Forces::Gather(GatherIntegrate::new(ctx, model, state, extra_forces)?)
+            }
+            GpuMethod::Scatter(accumulation) => {
+                let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
+                let buffers = ScatterBuffers::new(model, &forces, state)?;
+                let fixed_point = accumulation == Accumulation::AtomicFixed;
+                let (springs, accumulator) = match accumulation {
+                    Accumulation::AtomicF32 | Accumulation::AtomicFixed => {
+                        let sum = AccumulateAtomic::new(ctx, &buffers, state, fixed_point)?;
+                        (None, Accumulator::Atomic(sum))
+                    }
+                    Accumulation::Incidence => {
+                        let springs = ForceSprings::new(ctx, model, state)?;
+                        let sum = AccumulateIncidence::new(
+                            ctx,
+                            &model.model,
+                            &buffers,
+                            &springs.spring_forces,
+                        )?;
+                        (Some(springs), Accumulator::Incidence(sum))
+                    }
+                    Accumulation::BlendR32f
+                    | Accumulation::BlendR16f
+                    | Accumulation::BlendRgba8 => {
+                        let springs = ForceSprings::new(ctx, model, state)?;
+                        let sum = AccumulateBlend::new(
+                            ctx,
+                            &buffers,
+                            &springs.spring_forces,
+                            accumulation,
+                        )?;
+                        (Some(springs), Accumulator::Blend(sum))
+                    }
+                };
+                let integrate =
+                    Integrate::new(ctx, model, state, &forces, extra_forces, fixed_point)?;
+                Forces::Scatter {
+                    springs,
+                    accumulation: Box::new(accumulator),
+                    forces,
+                    integrate,
+                }
+            }
+        })
+    }
 }
 
 enum Accumulator {
@@ -135,63 +194,12 @@ impl GpuSolver {
         let n = model.vertex_count();
         let gpu_model = GpuModel::new(ctx, model, material, method)?;
         let state = GpuState::new(ctx, n);
-        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         // The flags exist when springs can break, or dampers must know which did.
         let broken = (model.tearing.is_some() || model.bending_damping > 0.0)
             .then(|| tear::broken_flags(ctx, model.spring_count()));
         let external = External::new(ctx, &gpu_model, &state, broken.as_ref())?;
         let extra_forces = &external.extra_forces;
-        let force = match method {
-            GpuMethod::Gather => {
-                Forces::Gather(GatherIntegrate::new(ctx, &gpu_model, &state, extra_forces)?)
-            }
-            GpuMethod::Scatter(accumulation) => {
-                let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
-                let buffers = ScatterBuffers {
-                    model: &gpu_model,
-                    springs: gpu_model.springs().ok_or_else(|| {
-                        GpuError::Validation("scatter without spring records".into())
-                    })?,
-                    forces: &forces,
-                    status: &state.status,
-                    vertex_count: n as u32,
-                    spring_count: model.spring_count() as u32,
-                };
-                let fixed_point = accumulation == Accumulation::AtomicFixed;
-                let (springs, accumulator) = match accumulation {
-                    Accumulation::AtomicF32 | Accumulation::AtomicFixed => {
-                        let sum = AccumulateAtomic::new(ctx, &buffers, &state, fixed_point)?;
-                        (None, Accumulator::Atomic(sum))
-                    }
-                    Accumulation::Incidence => {
-                        let springs = ForceSprings::new(ctx, &gpu_model, &state)?;
-                        let sum =
-                            AccumulateIncidence::new(ctx, model, &buffers, &springs.spring_forces)?;
-                        (Some(springs), Accumulator::Incidence(sum))
-                    }
-                    Accumulation::BlendR32f
-                    | Accumulation::BlendR16f
-                    | Accumulation::BlendRgba8 => {
-                        let springs = ForceSprings::new(ctx, &gpu_model, &state)?;
-                        let sum = AccumulateBlend::new(
-                            ctx,
-                            &buffers,
-                            &springs.spring_forces,
-                            accumulation,
-                        )?;
-                        (Some(springs), Accumulator::Blend(sum))
-                    }
-                };
-                let integrate =
-                    Integrate::new(ctx, &gpu_model, &state, &forces, extra_forces, fixed_point)?;
-                Forces::Scatter {
-                    springs,
-                    accumulation: Box::new(accumulator),
-                    forces,
-                    integrate,
-                }
-            }
-        };
+        let force = Forces::new(ctx, &gpu_model, &state, extra_forces)?;
         let collide = Collide::new(ctx, &gpu_model, &state)?;
         let balls = match &collide {
             Some(collide) => Balls::new(ctx, &gpu_model, &state, collide)?,
@@ -564,7 +572,10 @@ impl Solver for GpuSolver {
     fn describe(&self) -> String {
         let springs = match &self.force {
             Forces::Gather(gather) => format!("{}, ", gather.variant.name()),
-            _ => String::new(),
+            Forces::Scatter { accumulation, .. } => match accumulation.as_ref() {
+                Accumulator::Atomic(sum) if sum.reads_stencil => "stencil, ".to_owned(),
+                _ => String::new(),
+            },
         };
         format!(
             "gpu {} (f32, {springs}{})",
@@ -659,13 +670,9 @@ impl Solver for GpuSolver {
                 .get_or_insert_with(|| tear::broken_flags(context, spring_count));
             let tear = Tear::new(context, &self.model, &self.state, &never, flags);
             self.tear = Some(tear.map_err(device)?);
-            if let Forces::Gather(gather) = &mut self.force
-                && gather.variant != GatherVariant::Entries
-            {
-                let extra = &self.external.extra_forces;
-                *gather = GatherIntegrate::new(context, &self.model, &self.state, extra)
-                    .map_err(device)?;
-            }
+            // Kernels that read a stencil or one stiffness now read the records.
+            let extra = &self.external.extra_forces;
+            self.force = Forces::new(context, &self.model, &self.state, extra).map_err(device)?;
         }
         if let Some(tear) = &self.tear {
             tear.write(&self.context, &broken);

@@ -511,13 +511,36 @@ fn a_gpu_gather_of_one_stiffness_takes_a_restored_snapshots_tears() {
         )
         .expect("solver");
         assert!(gpu.describe().contains(variant), "{}", gpu.describe());
-        check_restored_tears(&scene, &context);
+        check_restored_tears(&scene, &context, GpuMethod::Gather);
+    }
+}
+
+#[test]
+fn gpu_atomic_scatter_over_a_stencil_takes_a_restored_snapshots_tears() {
+    let Some(gpu) = test_context() else { return };
+    let scene = uniform_sheet("generator = \"grid\"\nresolution = [12, 12]");
+    let mut accumulations = vec![Accumulation::AtomicFixed];
+    if gpu.has(hooke_gpu::wgpu::Features::SHADER_FLOAT32_ATOMIC) {
+        accumulations.push(Accumulation::AtomicF32);
+    }
+    let context = Some(gpu);
+    for accumulation in accumulations {
+        let method = GpuMethod::Scatter(accumulation);
+        let solver = Simulation::from_scene(&scene, SolverChoice::Gpu(method), context.clone())
+            .expect("solver");
+        // A grid's springs that cannot tear: the kernel runs over the stencil, not the records.
+        assert!(
+            solver.describe().contains("stencil"),
+            "{}",
+            solver.describe()
+        );
+        check_restored_tears(&scene, &context, method);
     }
 }
 
 /// A snapshot of `scene` with the springs across its middle cut, restored on the CPU and on
-/// the GPU (whose solver could not tear): the halves part alike.
-fn check_restored_tears(scene: &Scene, context: &Option<Arc<GpuContext>>) {
+/// the GPU with `method` (whose solver could not tear): the halves part alike.
+fn check_restored_tears(scene: &Scene, context: &Option<Arc<GpuContext>>, method: GpuMethod) {
     let mut cpu_run = Simulation::from_scene(scene, cpu(Method::Gather), None).expect("solver");
     cpu_run.step(100).expect("stable");
     let mut snapshot = cpu_run.snapshot().expect("snapshot");
@@ -538,7 +561,7 @@ fn check_restored_tears(scene: &Scene, context: &Option<Arc<GpuContext>>) {
         simulation.state().expect("state").positions
     };
     let on_cpu = after(cpu(Method::Gather));
-    let on_gpu = after(SolverChoice::Gpu(GpuMethod::Gather));
+    let on_gpu = after(SolverChoice::Gpu(method));
     let largest = |a: &[glam::DVec3], b: &[glam::DVec3]| {
         a.iter()
             .zip(b)

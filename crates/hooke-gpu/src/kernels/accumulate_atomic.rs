@@ -5,6 +5,11 @@
 //! (deterministic, and available on WebGPU), whose sums stay integers in the per-vertex force
 //! buffer for `integrate_fixed.wgsl` to read. The scale keeps any vertex's sum below 2^31; a
 //! larger contribution is clamped and flagged in the status.
+//!
+//! On a structured mesh whose records never change ([`crate::GpuModel::stencil`]) the kernels
+//! run per vertex over the stencil instead of per spring record: each vertex computes the
+//! springs it owns (those whose kind points to a higher index), subtracts each at its far end
+//! and adds their sum at its own end once, 4 atomic adds a spring instead of 6.
 
 use super::ScatterBuffers;
 use crate::context::{GpuContext, GpuError};
@@ -14,6 +19,8 @@ use crate::state::GpuState;
 #[derive(Debug)]
 pub struct AccumulateAtomic {
     kernel: Kernel,
+    /// Whether the kernel reads the stencil (per vertex) rather than the spring records.
+    pub reads_stencil: bool,
 }
 
 impl AccumulateAtomic {
@@ -29,16 +36,21 @@ impl AccumulateAtomic {
         } else {
             ("forces and atomic-f32 sums", super::ACCUMULATE_ATOMIC_F32)
         };
+        let model = buffers.model;
+        let stencil = model.stencil();
+        let (entry_point, invocations) = match stencil {
+            Some(_) => ("stencil", buffers.vertex_count),
+            None => ("main", buffers.spring_count),
+        };
         let kernel = Kernel::new(
             context,
             label,
             source,
-            "main",
-            buffers.spring_count,
+            entry_point,
+            invocations,
             |current| {
                 let mut resources = vec![
-                    (0, buffers.model.uniforms_binding(current)),
-                    (1, buffers.springs.as_entire_binding()),
+                    (0, model.uniforms_binding(current)),
                     (2, state.positions[current].as_entire_binding()),
                     (3, buffers.forces.as_entire_binding()),
                 ];
@@ -46,10 +58,21 @@ impl AccumulateAtomic {
                 if fixed_point {
                     resources.push((4, buffers.status.as_entire_binding()));
                 }
+                match stencil {
+                    // The masks travel in the integration scales.
+                    Some(stencil) => resources.extend([
+                        (5, model.scales.as_entire_binding()),
+                        (6, stencil.kinds.as_entire_binding()),
+                    ]),
+                    None => resources.push((1, buffers.springs.as_entire_binding())),
+                }
                 resources
             },
         )?;
-        Ok(Self { kernel })
+        Ok(Self {
+            kernel,
+            reads_stencil: stencil.is_some(),
+        })
     }
 
     /// Clears the per-vertex forces (`forces`, the buffer given at construction) and adds
@@ -68,7 +91,9 @@ impl AccumulateAtomic {
 
 #[cfg(test)]
 mod tests {
-    use crate::kernels::testing::{accumulated, assert_close};
+    use hooke_core::scene::MeshSection;
+
+    use crate::kernels::testing::{accumulated, assert_close, stretched, stretched_scene};
     use crate::methods::Accumulation;
 
     /// float32 spring forces summed in some order at the vertices, against float64 from the
@@ -79,17 +104,45 @@ mod tests {
     /// force per vertex here), well inside the float32 tolerance of the other accumulations.
     const FIXED_TOLERANCE: f64 = 1e-5;
 
-    #[test]
-    fn float_atomics_sum_spring_forces_as_the_reference_does() {
-        if let Some((actual, expected)) = accumulated(Accumulation::AtomicF32) {
-            assert_close(&actual, &expected, FLOAT_TOLERANCE, "atomic-f32");
+    /// A 13 x 11 grid, whose springs are a stencil.
+    fn grid() -> (hooke_core::scene::Scene, hooke_core::State) {
+        stretched(MeshSection::unit_grid(13, 11), 143)
+    }
+
+    /// The irregular mesh over its records; the grid over its stencil and over its records.
+    fn check(accumulation: Accumulation, tolerance: f64) {
+        for (scene, records, stencil) in [
+            (stretched_scene(), false, false),
+            (grid(), false, true),
+            (grid(), true, false),
+        ] {
+            let Some(sums) = accumulated(accumulation, scene, records) else {
+                return;
+            };
+            assert_eq!(sums.over_stencil, stencil, "{}", accumulation.name());
+            let what = format!("{}, stencil {stencil}", accumulation.name());
+            assert_close(&sums.actual, &sums.expected, tolerance, &what);
         }
     }
 
     #[test]
+    fn float_atomics_sum_spring_forces_as_the_reference_does() {
+        check(Accumulation::AtomicF32, FLOAT_TOLERANCE);
+    }
+
+    #[test]
     fn fixed_point_atomics_sum_spring_forces_as_the_reference_does() {
-        if let Some((actual, expected)) = accumulated(Accumulation::AtomicFixed) {
-            assert_close(&actual, &expected, FIXED_TOLERANCE, "atomic-fixed");
-        }
+        check(Accumulation::AtomicFixed, FIXED_TOLERANCE);
+    }
+
+    /// Integer sums are exact: the stencil's per-vertex grouping gives the records' integers.
+    #[test]
+    fn fixed_point_sums_over_the_stencil_are_the_records_sums() {
+        let sums = |records| accumulated(Accumulation::AtomicFixed, grid(), records);
+        let (Some(stencil), Some(records)) = (sums(false), sums(true)) else {
+            return;
+        };
+        assert!(stencil.over_stencil && !records.over_stencil);
+        assert_eq!(stencil.actual, records.actual);
     }
 }

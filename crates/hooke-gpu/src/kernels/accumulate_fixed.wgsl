@@ -6,6 +6,10 @@
 // flag, which the solver reports. Integer addition is associative, so the result is
 // bit-identical from run to run. The sums stay integers in the per-vertex force buffer;
 // `integrate_fixed.wgsl` turns them back into newtons.
+//
+// Two entry points, as in `accumulate_atomic_f32.wgsl`: `main` per spring record, `stencil`
+// per vertex of a structured mesh, which adds its own springs' integers once (their integer
+// sum: the same integers reach every vertex, so the same bits as `main`).
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read> springs: array<Spring>;
@@ -13,6 +17,9 @@
 // The per-vertex force buffer as 4 integers per vertex, zeroed before the pass.
 @group(0) @binding(3) var<storage, read_write> accumulated: array<atomic<i32>>;
 @group(0) @binding(4) var<storage, read_write> status: Status;
+// The stencil's: per vertex its mask (in z, see `stencil_mask`), and the kinds.
+@group(0) @binding(5) var<storage, read> scales: array<vec4<f32>>;
+@group(0) @binding(6) var<uniform> stencil_kinds: Stencil;
 
 fn to_fixed(force: vec3<f32>) -> vec3<i32> {
     let scaled = force * u.fixed_scale;
@@ -24,6 +31,12 @@ fn to_fixed(force: vec3<f32>) -> vec3<i32> {
     return vec3<i32>(round(select(vec3<f32>(0.0), clamped, clamped == clamped)));
 }
 
+fn add_at(vertex: u32, q: vec3<i32>) {
+    atomicAdd(&accumulated[4u * vertex + 0u], q.x);
+    atomicAdd(&accumulated[4u * vertex + 1u], q.y);
+    atomicAdd(&accumulated[4u * vertex + 2u], q.z);
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let s = flat_index(id, groups);
@@ -32,10 +45,31 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     }
     let spring = springs[s];
     let q = to_fixed(spring_force(positions[spring.a].xyz, positions[spring.b].xyz, spring.stiffness * u.stiffness_scale, spring.rest_length));
-    atomicAdd(&accumulated[4u * spring.a + 0u], q.x);
-    atomicAdd(&accumulated[4u * spring.a + 1u], q.y);
-    atomicAdd(&accumulated[4u * spring.a + 2u], q.z);
-    atomicSub(&accumulated[4u * spring.b + 0u], q.x);
-    atomicSub(&accumulated[4u * spring.b + 1u], q.y);
-    atomicSub(&accumulated[4u * spring.b + 2u], q.z);
+    add_at(spring.a, q);
+    add_at(spring.b, -q);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn stencil(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let vertex = flat_index(id, groups);
+    if vertex >= u.vertex_count {
+        return;
+    }
+    let x = positions[vertex].xyz;
+    let mask = stencil_mask(scales[vertex].z);
+    var own = vec3<i32>(0);
+    var owns = false;
+    for (var k = 0u; k < stencil_kinds.len; k++) {
+        let kind = stencil_kinds.kinds[k];
+        if (mask & (1u << k)) != 0u && kind.offset > 0 {
+            let neighbor = u32(i32(vertex) + kind.offset);
+            let q = to_fixed(spring_force(x, positions[neighbor].xyz, kind.stiffness * u.stiffness_scale, kind.rest_length));
+            own += q;
+            owns = true;
+            add_at(neighbor, -q);
+        }
+    }
+    if owns {
+        add_at(vertex, own);
+    }
 }

@@ -69,7 +69,7 @@ impl AccumulateIncidence {
 
 #[cfg(test)]
 mod tests {
-    use crate::kernels::testing::{accumulated, assert_close};
+    use crate::kernels::testing::{accumulated, assert_close, stretched_scene};
     use crate::methods::Accumulation;
 
     /// float32 spring forces summed at the vertices, against float64 from the same float32
@@ -78,8 +78,8 @@ mod tests {
 
     #[test]
     fn incidence_sums_spring_forces_at_the_vertices_as_the_reference_does() {
-        if let Some((actual, expected)) = accumulated(Accumulation::Incidence) {
-            assert_close(&actual, &expected, TOLERANCE, "incidence");
+        if let Some(sums) = accumulated(Accumulation::Incidence, stretched_scene(), false) {
+            assert_close(&sums.actual, &sums.expected, TOLERANCE, "incidence");
         }
     }
 }

@@ -87,3 +87,26 @@ fn is_finite3(v: vec3<f32>) -> bool {
     let exponent = bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u);
     return all(exponent != vec3<u32>(0x7f800000u));
 }
+
+// One kind of spring of a structured mesh (mirrors `GpuStencilEntry` in layout.rs).
+struct StencilEntry {
+    offset: i32,
+    rest_length: f32,
+    stiffness: f32,
+    pad: u32,
+}
+
+// Mirrors `GpuStencil` in layout.rs: the first `len` kinds are used.
+struct Stencil {
+    kinds: array<StencilEntry, 24>,
+    len: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+// A vertex's stencil mask, bit k set if it has a spring of kind k: the mantissa of the float
+// that carries it in its integration scales' z (stencil.rs).
+fn stencil_mask(carrier: f32) -> u32 {
+    return bitcast<u32>(carrier) & 0x7fffffu;
+}

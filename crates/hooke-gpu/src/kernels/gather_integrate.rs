@@ -49,7 +49,7 @@ impl GatherIntegrate {
         extra_forces: &wgpu::Buffer,
     ) -> Result<Self, GpuError> {
         let (variant, kinds) = match &model.topology {
-            GpuTopology::Stencil { kinds, .. } => (GatherVariant::Stencil, Some(kinds)),
+            GpuTopology::Stencil(stencil) => (GatherVariant::Stencil, Some(&stencil.kinds)),
             GpuTopology::Gather { .. }
                 if !model.records_change && uniform_stiffness(&model.model).is_some() =>
             {
@@ -162,7 +162,7 @@ mod tests {
         let Some(context) = context() else { return };
         let grid = stretched(MeshSection::unit_grid(13, 11), 143);
         let (scene, _, mut model, _) = damped_on_gpu_from(&context, grid);
-        assert!(matches!(model.topology, GpuTopology::Stencil { .. }));
+        assert!(matches!(model.topology, GpuTopology::Stencil(_)));
         assert_eq!(model.topology_bytes, size_of::<GpuStencil>() as u64);
         assert!(model.force_records().is_none());
         model.let_records_change(&context).expect("CSR rows");

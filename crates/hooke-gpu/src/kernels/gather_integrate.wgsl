@@ -56,23 +56,6 @@ fn gather_and_integrate(slot: u32, uniform: bool) {
     integrate_vertex(vertex, x, force);
 }
 
-// One kind of spring of a structured mesh (mirrors `GpuStencilEntry` in layout.rs).
-struct StencilEntry {
-    offset: i32,
-    rest_length: f32,
-    stiffness: f32,
-    pad: u32,
-}
-
-// Mirrors `GpuStencil` in layout.rs: the first `len` kinds are used.
-struct Stencil {
-    kinds: array<StencilEntry, 24>,
-    len: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
-
 @group(0) @binding(9) var<uniform> stencil_kinds: Stencil;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -83,8 +66,7 @@ fn stencil(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     }
     let x = positions[vertex].xyz;
     var force = vec3<f32>(0.0);
-    // Bit k set if the vertex has a spring of kind k: the mantissa of its scales' z (stencil.rs).
-    let mask = bitcast<u32>(scales[vertex].z) & 0x7fffffu;
+    let mask = stencil_mask(scales[vertex].z);
     // Lowest kind first: the order the vertex's CSR row lists its springs in.
     for (var k = 0u; k < stencil_kinds.len; k++) {
         if (mask & (1u << k)) != 0u {

@@ -34,6 +34,26 @@ pub struct ScatterBuffers<'a> {
     pub spring_count: u32,
 }
 
+impl<'a> ScatterBuffers<'a> {
+    /// The buffers of `model` (a scatter model: it has spring records), summing into `forces`.
+    pub fn new(
+        model: &'a crate::GpuModel,
+        forces: &'a wgpu::Buffer,
+        state: &'a crate::state::GpuState,
+    ) -> Result<Self, crate::GpuError> {
+        Ok(Self {
+            model,
+            springs: model.springs().ok_or_else(|| {
+                crate::GpuError::Validation("scatter without spring records".into())
+            })?,
+            forces,
+            status: &state.status,
+            vertex_count: model.uniforms.vertex_count,
+            spring_count: model.uniforms.spring_count,
+        })
+    }
+}
+
 /// A kernel's full source with the shared prelude (and `verlet.wgsl` for the kernels that
 /// integrate, `paths.wgsl` for collider kernels, `digits.wgsl` for the radix sort and the
 /// self-collision keys that count its first digits).

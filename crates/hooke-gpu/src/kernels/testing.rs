@@ -196,33 +196,41 @@ pub fn as_gpu_sees(state: &State) -> State {
     }
 }
 
-/// Spring forces, then `accumulation`, from a stretched state; the per-vertex sums in
-/// newtons, and the reference's. `None` without a device, or without the feature the
-/// accumulation needs.
-pub fn accumulated(accumulation: Accumulation) -> Option<(Vec<DVec3>, Vec<DVec3>)> {
+/// Per-vertex sums of an accumulation in newtons, the reference's, and whether the kernel
+/// ran over the model's stencil.
+pub struct Accumulated {
+    pub actual: Vec<DVec3>,
+    pub expected: Vec<DVec3>,
+    pub over_stencil: bool,
+}
+
+/// Spring forces, then `accumulation`, from a stretched `scene` and `state` (see
+/// [`stretched`]), reading the spring records when `records` even where a stencil could serve.
+/// `None` without a device, or without the feature the accumulation needs.
+pub fn accumulated(
+    accumulation: Accumulation,
+    (scene, state): (Scene, State),
+    records: bool,
+) -> Option<Accumulated> {
     let context = context()?;
     if let Some((feature, _)) = accumulation.required_feature()
         && !context.has(feature)
     {
         return None;
     }
-    let (scene, state) = stretched_scene();
     let n = scene.model.vertex_count();
     let method = GpuMethod::Scatter(accumulation);
-    let model = GpuModel::new(&context, &scene.model, &scene.material, method).expect("model");
+    let mut model = GpuModel::new(&context, &scene.model, &scene.material, method).expect("model");
+    if records {
+        model.let_records_change(&context).expect("records");
+    }
+    let over_stencil = model.stencil().is_some();
     let gpu_state = GpuState::new(&context, n);
     gpu_state.write(&context, &state);
     model.write_uniforms(&context);
     let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
     let forces = zeroed(&context, "forces", vec4s(n), copy);
-    let buffers = ScatterBuffers {
-        model: &model,
-        springs: model.springs().expect("spring records"),
-        forces: &forces,
-        status: &gpu_state.status,
-        vertex_count: n as u32,
-        spring_count: scene.model.spring_count() as u32,
-    };
+    let buffers = ScatterBuffers::new(&model, &forces, &gpu_state).expect("spring records");
     let current = gpu_state.current;
     let actual = match accumulation {
         Accumulation::Incidence => {
@@ -256,5 +264,9 @@ pub fn accumulated(accumulation: Accumulation) -> Option<(Vec<DVec3>, Vec<DVec3>
         other => panic!("{} is not tested here", other.name()),
     };
     let expected = reference_spring_forces(&scene.model, &as_gpu_sees(&state).positions);
-    Some((actual, expected))
+    Some(Accumulated {
+        actual,
+        expected,
+        over_stencil,
+    })
 }
