@@ -663,7 +663,11 @@ fn integrate_slice<S: Simd>(
     let zero = simd.splat(0.0);
     let mut probe = zero;
     let mut news = [zero; 3];
-    for (axis, (next, delta)) in out.next.into_iter().zip(out.delta).enumerate() {
+    let SliceOut { next, delta } = out;
+    // Indexed, not zipped: the compiler unrolls a counted loop over three axes, where the
+    // arrays' by-value iterators kept their state on the stack.
+    for axis in 0..3 {
+        let (next, delta) = (&mut *next[axis], &mut *delta[axis]);
         let x = simd.load(current.block(axis, slice));
         let moved = simd.add(
             simd.add(
