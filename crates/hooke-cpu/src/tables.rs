@@ -83,10 +83,17 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
     }
 }
 
+/// Vertices whose springs the scatter force pass visits together on a structured mesh: their
+/// positions (and their springs' far ends, a row of the mesh further on) stay in the
+/// second-level cache while the pass visits each kind of spring in turn.
+const SPRING_BLOCK: u32 = 4096;
+
 /// The order the scatter force pass visits springs in. Structured meshes have a handful of
 /// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
-/// ends of 8 consecutive springs consecutive vertices, so a row loads with vector loads. Other
-/// meshes are ordered by first end, which keeps position reads nearly sequential.
+/// ends of 8 consecutive springs consecutive vertices, so a row loads with vector loads. The
+/// groups are formed within blocks of [`SPRING_BLOCK`] first ends, so the pass reads the
+/// positions once rather than once per offset. Other meshes are ordered by first end, which
+/// keeps position reads nearly sequential.
 fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
     const MAX_CLASSES: usize = 16;
     let offset = |s: u32| i64::from(ends[s as usize][1]) - i64::from(ends[s as usize][0]);
@@ -107,7 +114,8 @@ fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
             .collect();
         let key = |s: u32| {
             let [a, b] = ends[s as usize];
-            (class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES), a, b)
+            let class = class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES);
+            (a / SPRING_BLOCK, class, a, b)
         };
         order.sort_by_cached_key(|&s| key(s));
     } else {
@@ -278,6 +286,36 @@ mod tests {
             assert_eq!(matches!(spring_forces, SpringForces::Points(_)), points);
             assert_eq!(rows, springs.a.len() + 1);
             assert_eq!(spring_forces.bytes(), rows * LANES * bytes_per_slot);
+        }
+    }
+
+    /// A grid's springs are visited block of first ends by block, each block's grouped by
+    /// offset, so the force pass reads each position once and nearly every row of 8 still
+    /// loads both ends with vector loads.
+    #[test]
+    fn a_grids_springs_run_by_offset_within_blocks_of_first_ends() {
+        let side = 128;
+        let Topology::Scatter { springs, .. } = topology_of(
+            MeshSection::unit_grid(side, side),
+            side * side,
+            Method::Scatter,
+        ) else {
+            unreachable!("scatter builds scatter tables");
+        };
+        let count = 3 * (side - 1) * (side - 1) + 2 * (side - 1);
+        let firsts: Vec<u32> = (0..springs.a.len())
+            .flat_map(|row| springs.a.row(row))
+            .take(count as usize)
+            .collect();
+        let blocks: Vec<u32> = firsts.iter().map(|a| a / SPRING_BLOCK).collect();
+        assert!(blocks.is_sorted(), "springs leave a block and come back");
+        assert_eq!(blocks.last(), Some(&(side * side / SPRING_BLOCK - 1)));
+        // Within a block, the first ends rise three times over: once per offset.
+        let restarts = firsts.windows(2).filter(|w| w[1] < w[0]).count();
+        assert_eq!(restarts, 2 * (side * side / SPRING_BLOCK) as usize);
+        for ends in [&springs.a, &springs.b] {
+            let share = ends.contiguous_share();
+            assert!(share > 0.95, "contiguous spring-end rows: {share}");
         }
     }
 
