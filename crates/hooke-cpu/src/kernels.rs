@@ -328,6 +328,24 @@ impl SpringForces {
             Self::Points(rows) => std::mem::size_of_val(rows.as_slice()),
         }
     }
+
+    /// The forces as the accumulation reads them.
+    pub fn view(&self) -> ForcesView<'_> {
+        match self {
+            Self::Axes(axes) => {
+                ForcesView::Axes(axes.axes().map(|a| Floats::new(a.as_flattened())))
+            }
+            Self::Points(rows) => ForcesView::Points(Points::new(rows.as_flattened())),
+        }
+    }
+}
+
+/// Scatter's spring forces as the accumulation reads them: pointers, so that a schedule may
+/// sum some rows while other threads write others (see `crate::blocks`).
+#[derive(Clone, Copy, Debug)]
+pub enum ForcesView<'a> {
+    Axes([Floats<'a>; 3]),
+    Points(Points<'a>),
 }
 
 /// Where a chunk of scatter's force pass writes its rows.
@@ -571,12 +589,9 @@ fn gather_slice<S: Simd, const POINTS: bool>(
 fn accumulate_slice<S: Simd>(
     simd: S,
     table: &IncidenceTable,
-    spring_forces: &Soa,
+    [xs, ys, zs]: [Floats<'_>; 3],
     slice: usize,
 ) -> [S::V; 3] {
-    let [xs, ys, zs] = spring_forces
-        .axes()
-        .map(|axis| Floats::new(axis.as_flattened()));
     let mut force = [simd.splat(0.0); 3];
     for row in table.slices.rows(slice) {
         let fx = load_row(simd, xs, &table.entry, row, !B_END, true);
@@ -758,7 +773,7 @@ impl<const POINTS: bool> SliceForces for Gathered<'_, POINTS> {
 /// Scatter: each slice sums its springs' forces from the force pass, kept in three axes.
 struct Accumulated<'a> {
     table: &'a IncidenceTable,
-    spring_forces: &'a Soa,
+    spring_forces: [Floats<'a>; 3],
 }
 
 impl SliceForces for Accumulated<'_> {
@@ -865,25 +880,24 @@ dispatch! {
 fn accumulate_and_integrate_with<S: Simd>(
     simd: S,
     table: &IncidenceTable,
-    spring_forces: &SpringForces,
+    spring_forces: ForcesView<'_>,
     integrator: &Integrator,
-    current: &Soa,
+    current: Positions<'_>,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let current = Positions::new(current, None);
     match spring_forces {
-        SpringForces::Axes(spring_forces) => {
+        ForcesView::Axes(spring_forces) => {
             let forces = Accumulated {
                 table,
                 spring_forces,
             };
             integrate_chunk(simd, integrator, current, extra, chunk, &forces)
         }
-        SpringForces::Points(rows) => {
+        ForcesView::Points(spring_forces) => {
             let forces = AccumulatedPoints {
                 table,
-                spring_forces: Points::new(rows.as_flattened()),
+                spring_forces,
             };
             integrate_chunk(simd, integrator, current, extra, chunk, &forces)
         }
@@ -896,9 +910,9 @@ dispatch! {
     /// then integrates.
     pub fn accumulate_and_integrate(
         table: &IncidenceTable,
-        spring_forces: &SpringForces,
+        spring_forces: ForcesView<'_>,
         integrator: &Integrator,
-        current: &Soa,
+        current: Positions<'_>,
         extra: Option<&Soa>,
         chunk: VertexChunk<'_>,
     ) -> bool => accumulate_and_integrate_with
@@ -1050,21 +1064,21 @@ dispatch! {
 fn accumulate_forces_with<S: Simd>(
     simd: S,
     table: &IncidenceTable,
-    spring_forces: &SpringForces,
+    spring_forces: ForcesView<'_>,
     chunk: ForceChunk<'_>,
 ) {
     match spring_forces {
-        SpringForces::Axes(spring_forces) => {
+        ForcesView::Axes(spring_forces) => {
             let forces = Accumulated {
                 table,
                 spring_forces,
             };
             store_forces(simd, chunk, &forces);
         }
-        SpringForces::Points(rows) => {
+        ForcesView::Points(spring_forces) => {
             let forces = AccumulatedPoints {
                 table,
-                spring_forces: Points::new(rows.as_flattened()),
+                spring_forces,
             };
             store_forces(simd, chunk, &forces);
         }
@@ -1073,7 +1087,7 @@ fn accumulate_forces_with<S: Simd>(
 
 dispatch! {
     /// Phase-separated scatter accumulation (for per-phase timing): net force per vertex.
-    pub fn accumulate_forces(table: &IncidenceTable, spring_forces: &SpringForces, chunk: ForceChunk<'_>) -> ()
+    pub fn accumulate_forces(table: &IncidenceTable, spring_forces: ForcesView<'_>, chunk: ForceChunk<'_>) -> ()
         => accumulate_forces_with
 }
 

@@ -12,6 +12,7 @@
 //! scatter produce bit-identical states; see [`kernels`] for why.
 #![allow(unsafe_code)] // Unchecked gathers in `kernels`; every index is checked when tables are built.
 
+mod blocks;
 mod collision;
 mod external;
 pub mod kernels;
@@ -186,6 +187,8 @@ pub struct CpuSolver {
     stiffness_entries: Option<Vec<[u32; 2]>>,
     /// How several steps run in one sweep over memory, when they may (see [`sweep`]).
     sweep: Option<sweep::Sweep>,
+    /// How a scatter step runs block by block on a large mesh (see [`blocks`]).
+    blocks: Option<blocks::Blocks>,
     steps_taken: u64,
 }
 
@@ -238,6 +241,7 @@ impl CpuSolver {
             tear_positions: Vec::new(),
             stiffness_entries: None,
             sweep: None,
+            blocks: None,
             model: model.clone(),
             steps_taken: 0,
         };
@@ -329,6 +333,15 @@ impl CpuSolver {
     fn plan_sweep(&mut self) {
         let (slices, threads) = (self.numbering.slice_count(), self.threads());
         self.sweep = sweep::Sweep::plan(&self.topology, slices, threads);
+        self.blocks = match &self.topology {
+            Topology::Scatter {
+                springs, incidence, ..
+            } => {
+                let spring_count = self.model.spring_count();
+                blocks::Blocks::plan(springs, incidence, slices, spring_count, threads)
+            }
+            Topology::Gather(_) => None,
+        };
     }
 
     /// Whether every vertex stays where the integration puts it (no colliders, handles or
@@ -502,19 +515,35 @@ impl CpuSolver {
                 incidence,
                 spring_forces,
             } => {
-                compute_spring_forces(isa, springs, current, points, spring_forces);
-                let spring_forces = &*spring_forces;
-                for_each_vertex_chunk(next, delta, next_points, |chunk| {
-                    kernels::accumulate_and_integrate(
+                if let Some(blocks) = &self.blocks {
+                    let out = blocks::Outputs::new(next, delta, next_points);
+                    blocks.step(
                         isa,
+                        springs,
                         incidence,
                         spring_forces,
                         integrator,
                         current,
+                        points,
                         extra,
-                        chunk,
+                        out,
                     )
-                })
+                } else {
+                    compute_spring_forces(isa, springs, current, points, spring_forces);
+                    let spring_forces = spring_forces.view();
+                    let current = Positions::new(current, None);
+                    for_each_vertex_chunk(next, delta, next_points, |chunk| {
+                        kernels::accumulate_and_integrate(
+                            isa,
+                            incidence,
+                            spring_forces,
+                            integrator,
+                            current,
+                            extra,
+                            chunk,
+                        )
+                    })
+                }
             }
         };
         self.points_integrated(writes_points);
@@ -549,7 +578,7 @@ impl CpuSolver {
                 compute_spring_forces(isa, springs, current, points, spring_forces);
                 times.force_calculation = start.elapsed();
                 let start = Instant::now();
-                let spring_forces = &*spring_forces;
+                let spring_forces = spring_forces.view();
                 for_each_force_chunk(phase_forces, |chunk| {
                     kernels::accumulate_forces(isa, incidence, spring_forces, chunk);
                 });

@@ -86,7 +86,7 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
 /// Vertices whose springs the scatter force pass visits together on a structured mesh: their
 /// positions (and their springs' far ends, a row of the mesh further on) stay in the
 /// second-level cache while the pass visits each kind of spring in turn.
-const SPRING_BLOCK: u32 = 4096;
+pub(crate) const SPRING_BLOCK: u32 = 4096;
 
 /// The order the scatter force pass visits springs in. Structured meshes have a handful of
 /// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both

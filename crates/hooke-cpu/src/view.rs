@@ -50,8 +50,12 @@ impl<'a, T> Run<'a, T> {
         }
     }
 
-    /// `len` values at `start`, which must stay readable for `'a`.
-    fn from_raw(start: *const T, len: usize) -> Self {
+    /// `len` values at `start`.
+    ///
+    /// # Safety
+    /// They must stay readable for `'a`, and no thread may write any value the view is read
+    /// at while it is in use.
+    pub(crate) unsafe fn from_raw(start: *const T, len: usize) -> Self {
         Self {
             start,
             len,
@@ -147,9 +151,12 @@ impl<'a> Positions<'a> {
         points: Option<*const [Point; LANES]>,
     ) -> Self {
         let len = blocks * LANES;
-        Self {
-            axes: axes.map(|axis| Floats::from_raw(axis.cast(), len)),
-            points: points.map(|points| Points::from_raw(points.cast(), len)),
+        // SAFETY: the caller's guarantee.
+        unsafe {
+            Self {
+                axes: axes.map(|axis| Floats::from_raw(axis.cast(), len)),
+                points: points.map(|points| Points::from_raw(points.cast(), len)),
+            }
         }
     }
 

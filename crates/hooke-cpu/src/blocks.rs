@@ -1,0 +1,396 @@
+//! Scatter's force pass and accumulation block by block, for meshes larger than the caches.
+//!
+//! A scatter step writes a force per spring, then reads each back where it sums the forces at
+//! the vertices; on a mesh whose forces leave the caches, the second pass reads them all from
+//! memory again. The springs are ordered by blocks of [`SPRING_BLOCK`] first ends (see
+//! `tables::spring_order`), and every spring a vertex sums is owned by the vertex or by a lower
+//! one, so once the spring rows of the blocks up to `k` are computed, the vertices of block `k`
+//! can be summed and integrated while those forces are still in the cache.
+//!
+//! The blocks are cut into bands, one task each. A task computes its blocks' rows in order and
+//! after each block integrates the block's slices whose springs all lie in rows of its own band
+//! (a block's rows are those from its first spring's row, rounded up, to the next block's, so
+//! a row shared by two blocks belongs to the first). The other slices, the first of a band
+//! whose lower neighbours' springs lie in the band before, wait for a second pass, once every
+//! band's rows are written. Each task writes only its band's rows of forces and its band's
+//! slices, and in the first pass reads only rows its own band has written: the tasks touch
+//! disjoint memory. Every vertex sums the same forces in the same order as in the plain step,
+//! so the states are bit-identical (tested).
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use crate::kernels::{
+    self, Block, ForceRows, ForcesView, IncidenceTable, InstructionSet, Integrator, Point, Soa,
+    SpringForces, SpringTable, VertexChunk,
+};
+use crate::layout::LANES;
+use crate::tables::SPRING_BLOCK;
+use crate::view::{Floats, Points, Positions};
+
+/// Slices a mesh needs at least for blocks to pay: 131,072 vertices. Below that, a step's
+/// forces stay in the caches anyway.
+const MIN_SLICES: usize = 16_384;
+
+/// Bands per thread, so a thread that finishes early takes another.
+const BANDS_PER_THREAD: usize = 4;
+
+/// Slices per block of first ends.
+const BLOCK_SLICES: usize = SPRING_BLOCK as usize / LANES;
+
+/// How a scatter mesh's step runs block by block (see the module docs).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Blocks {
+    /// Per block, its first spring row; one more entry ends the last block's rows.
+    rows: Vec<usize>,
+    /// Per slice, the first block whose rows hold a spring it sums.
+    first_block: Vec<u32>,
+    /// Per band, its first block; one more entry ends the last band.
+    bands: Vec<usize>,
+}
+
+impl Blocks {
+    /// The blocks of a scatter mesh of `slices` slices with `springs` springs stepped by
+    /// `threads` threads, or `None` where they would not pay: too small a mesh, or too few
+    /// blocks for a band per thread.
+    pub(crate) fn plan(
+        springs: &SpringTable,
+        incidence: &IncidenceTable,
+        slices: usize,
+        spring_count: usize,
+        threads: usize,
+    ) -> Option<Self> {
+        if slices < MIN_SLICES {
+            return None;
+        }
+        Self::of(springs, incidence, slices, spring_count, threads)
+    }
+
+    /// [`Blocks::plan`] on a mesh of any size.
+    fn of(
+        springs: &SpringTable,
+        incidence: &IncidenceTable,
+        slices: usize,
+        spring_count: usize,
+        threads: usize,
+    ) -> Option<Self> {
+        let blocks = slices.div_ceil(BLOCK_SLICES);
+        let band_count = (threads * BANDS_PER_THREAD).min(blocks / 2);
+        if band_count < 2 {
+            return None;
+        }
+        // A block's first spring: the springs are ordered by their first end's block.
+        let mut first_slot = vec![spring_count; blocks + 1];
+        for slot in (0..spring_count).rev() {
+            let a = springs.a.row(slot / LANES)[slot % LANES] as usize;
+            first_slot[a / SPRING_BLOCK as usize] = slot;
+        }
+        for k in (0..blocks).rev() {
+            first_slot[k] = first_slot[k].min(first_slot[k + 1]);
+        }
+        let rows: Vec<usize> = first_slot.iter().map(|s| s.div_ceil(LANES)).collect();
+        let spring_rows = spring_count.div_ceil(LANES);
+        let block_of_row = |row: usize| rows.partition_point(|&start| start <= row) - 1;
+        let first_block = (0..slices)
+            .map(|slice| {
+                incidence
+                    .slices
+                    .rows(slice)
+                    .flat_map(|row| incidence.entry.row(row))
+                    .map(|entry| (entry & !kernels::B_END) as usize / LANES)
+                    // Padding entries read the zero row past the springs'.
+                    .filter(|&row| row < spring_rows)
+                    .map(block_of_row)
+                    .min()
+                    .unwrap_or(slice / BLOCK_SLICES) as u32
+            })
+            .collect();
+        let bands = (0..=band_count).map(|b| b * blocks / band_count).collect();
+        Some(Self {
+            rows,
+            first_block,
+            bands,
+        })
+    }
+
+    fn band_count(&self) -> usize {
+        self.bands.len() - 1
+    }
+
+    /// The slices of blocks `blocks`.
+    fn slices(&self, blocks: Range<usize>) -> Range<usize> {
+        let slices = self.first_block.len();
+        (blocks.start * BLOCK_SLICES).min(slices)..(blocks.end * BLOCK_SLICES).min(slices)
+    }
+
+    /// One scatter step, block by block: every spring's force into `spring_forces`, and every
+    /// vertex summed and integrated into `out`. True if every new position is finite.
+    #[allow(clippy::too_many_arguments)] // the plain step's inputs, passed on to its kernels
+    pub(crate) fn step(
+        &self,
+        isa: InstructionSet,
+        springs: &SpringTable,
+        incidence: &IncidenceTable,
+        spring_forces: &mut SpringForces,
+        integrator: &Integrator,
+        current: &Soa,
+        points: Option<&[Point]>,
+        extra: Option<&Soa>,
+        out: Outputs,
+    ) -> bool {
+        let forces = Forces::new(spring_forces);
+        // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
+        let view = unsafe { forces.view() };
+        let positions = Positions::new(current, None);
+        let integrate = |slices: Range<usize>| {
+            // SAFETY: the schedule of the module docs: no other task touches these slices.
+            let chunk = unsafe { out.chunk(slices) };
+            kernels::accumulate_and_integrate(
+                isa, incidence, view, integrator, positions, extra, chunk,
+            )
+        };
+        let first = (0..self.band_count()).into_par_iter().map(|b| {
+            let band = self.bands[b]..self.bands[b + 1];
+            let mut finite = true;
+            for k in band.clone() {
+                // SAFETY: block k's rows belong to this band alone, and no task reads them
+                // before this one has written them (the module docs).
+                let rows = unsafe { forces.rows(self.rows[k]..self.rows[k + 1]) };
+                kernels::spring_forces(isa, springs, current, points, self.rows[k], rows);
+                let ready = |s: &usize| self.first_block[*s] as usize >= band.start;
+                finite &=
+                    runs(self.slices(k..k + 1), ready).fold(true, |all, r| integrate(r) & all);
+            }
+            finite
+        });
+        let first = first.reduce(|| true, |a, b| a && b);
+        let second = (0..self.band_count()).into_par_iter().map(|b| {
+            let band = self.bands[b]..self.bands[b + 1];
+            let waiting = |s: &usize| (self.first_block[*s] as usize) < band.start;
+            runs(self.slices(band.clone()), waiting).fold(true, |all, r| integrate(r) & all)
+        });
+        first & second.reduce(|| true, |a, b| a && b)
+    }
+}
+
+/// The runs of consecutive slices of `slices` that `keep` keeps.
+fn runs(slices: Range<usize>, keep: impl Fn(&usize) -> bool) -> impl Iterator<Item = Range<usize>> {
+    let mut at = slices.start;
+    std::iter::from_fn(move || {
+        while at < slices.end && !keep(&at) {
+            at += 1;
+        }
+        let start = at;
+        while at < slices.end && keep(&at) {
+            at += 1;
+        }
+        (start < at).then_some(start..at)
+    })
+}
+
+/// Scatter's spring forces as pointers that every band's task uses (see [`Forces::rows`]).
+#[derive(Clone, Copy)]
+struct Forces {
+    axes: Option<[*mut Block; 3]>,
+    points: Option<*mut [Point; LANES]>,
+    /// Rows in the buffer.
+    rows: usize,
+}
+
+// SAFETY: the bands' tasks use the buffer in disjoint ways (see the module docs).
+unsafe impl Send for Forces {}
+unsafe impl Sync for Forces {}
+
+impl Forces {
+    fn new(spring_forces: &mut SpringForces) -> Self {
+        match spring_forces {
+            SpringForces::Axes(axes) => Self {
+                rows: axes.blocks(),
+                axes: Some(axes.axes_mut().map(<[Block]>::as_mut_ptr)),
+                points: None,
+            },
+            SpringForces::Points(rows) => Self {
+                rows: rows.len(),
+                axes: None,
+                points: Some(rows.as_mut_ptr()),
+            },
+        }
+    }
+
+    /// Rows `rows` to write.
+    ///
+    /// # Safety
+    /// While they are in use, no other thread may read or write them.
+    unsafe fn rows<'a>(&self, rows: Range<usize>) -> ForceRows<'a> {
+        assert!(
+            rows.start <= rows.end && rows.end <= self.rows,
+            "force rows out of bounds"
+        );
+        let (start, len) = (rows.start, rows.len());
+        // SAFETY: in bounds (checked); the caller keeps other threads off them.
+        unsafe {
+            match (self.axes, self.points) {
+                (Some(axes), _) => ForceRows::Axes(
+                    axes.map(|axis| std::slice::from_raw_parts_mut(axis.add(start), len)),
+                ),
+                (None, Some(points)) => {
+                    ForceRows::Points(std::slice::from_raw_parts_mut(points.add(start), len))
+                }
+                (None, None) => unreachable!("forces are axes or points"),
+            }
+        }
+    }
+
+    /// The whole buffer to read.
+    ///
+    /// # Safety
+    /// Only rows that no thread writes while the view is in use may be read through it.
+    unsafe fn view<'a>(&self) -> ForcesView<'a> {
+        let len = self.rows * LANES;
+        // SAFETY: the buffer holds `len` values; the caller's guarantee for the rest.
+        unsafe {
+            match (self.axes, self.points) {
+                (Some(axes), _) => ForcesView::Axes(
+                    axes.map(|axis| Floats::from_raw(axis.cast_const().cast(), len)),
+                ),
+                (None, Some(points)) => {
+                    ForcesView::Points(Points::from_raw(points.cast_const().cast(), len))
+                }
+                (None, None) => unreachable!("forces are axes or points"),
+            }
+        }
+    }
+}
+
+/// Where a step's new positions, points and deltas go, as pointers (see [`Outputs::chunk`]).
+#[derive(Clone, Copy)]
+pub(crate) struct Outputs {
+    next: [*mut Block; 3],
+    delta: [*mut Block; 3],
+    points: Option<*mut [Point; LANES]>,
+    slices: usize,
+}
+
+// SAFETY: the bands' tasks write disjoint slices (see the module docs).
+unsafe impl Send for Outputs {}
+unsafe impl Sync for Outputs {}
+
+impl Outputs {
+    pub(crate) fn new(
+        next: &mut Soa,
+        delta: &mut Soa,
+        points: Option<&mut [[Point; LANES]]>,
+    ) -> Self {
+        Self {
+            slices: next.blocks(),
+            next: next.axes_mut().map(<[Block]>::as_mut_ptr),
+            delta: delta.axes_mut().map(<[Block]>::as_mut_ptr),
+            points: points.map(<[[Point; LANES]]>::as_mut_ptr),
+        }
+    }
+
+    /// The outputs of `slices`.
+    ///
+    /// # Safety
+    /// While the chunk is in use, no other thread may touch these slices.
+    unsafe fn chunk<'a>(&self, slices: Range<usize>) -> VertexChunk<'a> {
+        assert!(slices.end <= self.slices, "output slices out of bounds");
+        let (start, len) = (slices.start, slices.len());
+        let part =
+            |axis: *mut Block| unsafe { std::slice::from_raw_parts_mut(axis.add(start), len) };
+        VertexChunk {
+            first_slice: start,
+            next: self.next.map(part),
+            delta: self.delta.map(part),
+            // SAFETY: as the axes.
+            points: self
+                .points
+                .map(|points| unsafe { std::slice::from_raw_parts_mut(points.add(start), len) }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use hooke_core::Solver;
+    use hooke_core::scene::{MeshSection, Scene, SceneFile};
+    use hooke_testkit::state_of;
+
+    use super::*;
+    use crate::{CpuOptions, CpuSolver, Method, Topology};
+
+    fn scene(mesh: MeshSection, vertices: u32) -> Scene {
+        SceneFile::benchmark(mesh, vertices)
+            .build(Path::new("bench"), true)
+            .expect("benchmark scene builds")
+    }
+
+    /// A scatter solver that steps block by block, even on a mesh below [`MIN_SLICES`], or
+    /// one that never does.
+    fn solver(scene: &Scene, threads: usize, blocks: bool) -> CpuSolver {
+        let options = CpuOptions {
+            method: Method::Scatter,
+            threads: Some(threads),
+            ..Default::default()
+        };
+        let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
+        solver.blocks = match &solver.topology {
+            Topology::Scatter {
+                springs, incidence, ..
+            } if blocks => Blocks::of(
+                springs,
+                incidence,
+                solver.numbering.slice_count(),
+                scene.model.spring_count(),
+                threads,
+            ),
+            _ => None,
+        };
+        assert_eq!(solver.blocks.is_some(), blocks);
+        solver
+    }
+
+    #[test]
+    fn block_by_block_steps_give_the_states_of_plain_steps() {
+        let meshes = [
+            (MeshSection::unit_grid(256, 256), 256 * 256),
+            (MeshSection::unit_irregular(40_000, 11), 40_000),
+        ];
+        for (mesh, vertices) in meshes {
+            let scene = scene(mesh, vertices);
+            for threads in [1, 2, 3] {
+                let mut plain = solver(&scene, threads, false);
+                let mut blocked = solver(&scene, threads, true);
+                let plan = blocked.blocks.clone().expect("planned");
+                // Every band but the first has slices that wait for the band before it.
+                assert!(
+                    plan.band_count() >= 2,
+                    "{vertices} vertices: {threads} threads"
+                );
+                for b in 1..plan.band_count() {
+                    let start = plan.bands[b];
+                    let slices = plan.slices(start..start + 1);
+                    assert!(
+                        slices
+                            .clone()
+                            .any(|s| (plan.first_block[s] as usize) < start),
+                        "{vertices} vertices, band {b}: no slice waits"
+                    );
+                }
+                for steps in [1, 5, 20] {
+                    plain.step(steps).expect("stable");
+                    blocked.step(steps).expect("stable");
+                    let (a, b) = (state_of(&plain), state_of(&blocked));
+                    assert!(
+                        a == b,
+                        "{vertices} vertices, {threads} threads, after {} steps",
+                        blocked.steps_taken()
+                    );
+                }
+            }
+        }
+    }
+}
