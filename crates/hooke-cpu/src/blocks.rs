@@ -64,17 +64,6 @@ impl Blocks {
         if slices < MIN_SLICES {
             return None;
         }
-        Self::of(springs, incidence, slices, spring_count, threads)
-    }
-
-    /// [`Blocks::plan`] on a mesh of any size.
-    fn of(
-        springs: &SpringTable,
-        incidence: &IncidenceTable,
-        slices: usize,
-        spring_count: usize,
-        threads: usize,
-    ) -> Option<Self> {
         let blocks = slices.div_ceil(BLOCK_SLICES);
         let band_count = (threads * BANDS_PER_THREAD).min(blocks / 2);
         if band_count < 2 {
@@ -313,23 +302,13 @@ impl Outputs {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
     use hooke_core::Solver;
-    use hooke_core::scene::{MeshSection, Scene, SceneFile};
-    use hooke_testkit::state_of;
+    use hooke_core::scene::{MeshSection, Scene};
+    use hooke_testkit::{benchmark_scene, state_of};
 
-    use super::*;
-    use crate::{CpuOptions, CpuSolver, Method, Topology};
+    use crate::{CpuOptions, CpuSolver, Method};
 
-    fn scene(mesh: MeshSection, vertices: u32) -> Scene {
-        SceneFile::benchmark(mesh, vertices)
-            .build(Path::new("bench"), true)
-            .expect("benchmark scene builds")
-    }
-
-    /// A scatter solver that steps block by block, even on a mesh below [`MIN_SLICES`], or
-    /// one that never does.
+    /// A scatter solver that steps block by block, or one that never does.
     fn solver(scene: &Scene, threads: usize, blocks: bool) -> CpuSolver {
         let options = CpuOptions {
             method: Method::Scatter,
@@ -337,30 +316,26 @@ mod tests {
             ..Default::default()
         };
         let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
-        solver.blocks = match &solver.topology {
-            Topology::Scatter {
-                springs, incidence, ..
-            } if blocks => Blocks::of(
-                springs,
-                incidence,
-                solver.numbering.slice_count(),
-                scene.model.spring_count(),
-                threads,
-            ),
-            _ => None,
-        };
-        assert_eq!(solver.blocks.is_some(), blocks);
+        assert!(
+            solver.blocks.is_some(),
+            "{} vertices",
+            scene.model.vertex_count()
+        );
+        if !blocks {
+            solver.blocks = None;
+        }
         solver
     }
 
     #[test]
     fn block_by_block_steps_give_the_states_of_plain_steps() {
         let meshes = [
-            (MeshSection::unit_grid(256, 256), 256 * 256),
-            (MeshSection::unit_irregular(40_000, 11), 40_000),
+            // Just above the size that steps block by block.
+            (MeshSection::unit_grid(384, 384), 384 * 384),
+            (MeshSection::unit_irregular(140_000, 11), 140_000),
         ];
         for (mesh, vertices) in meshes {
-            let scene = scene(mesh, vertices);
+            let scene = benchmark_scene(mesh, vertices);
             for threads in [1, 2, 3] {
                 let mut plain = solver(&scene, threads, false);
                 let mut blocked = solver(&scene, threads, true);

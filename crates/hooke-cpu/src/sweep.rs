@@ -255,20 +255,12 @@ impl CpuSolver {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
-    use hooke_core::scene::{MeshSection, Scene, SceneFile};
+    use hooke_core::scene::{MeshSection, Scene};
     use hooke_core::{SimError, Solver};
-    use hooke_testkit::state_of;
+    use hooke_testkit::{benchmark_scene, state_of};
 
     use super::*;
     use crate::{CpuOptions, Method};
-
-    fn scene(mesh: MeshSection, vertices: u32) -> Scene {
-        SceneFile::benchmark(mesh, vertices)
-            .build(Path::new("bench"), true)
-            .expect("benchmark scene builds")
-    }
 
     /// A gather solver that sweeps wherever it can, even on a mesh below [`MIN_SLICES`], or
     /// one that never does.
@@ -296,7 +288,7 @@ mod tests {
             (MeshSection::unit_irregular(40_000, 11), 40_000, true),
         ];
         for (mesh, vertices, reads_points) in meshes {
-            let scene = scene(mesh, vertices);
+            let scene = benchmark_scene(mesh, vertices);
             for threads in [1, 2, 3] {
                 let mut single = solver(&scene, threads, false);
                 let mut swept = solver(&scene, threads, true);
@@ -325,7 +317,7 @@ mod tests {
 
     #[test]
     fn a_sweep_stops_at_the_first_step_that_blew_up() {
-        let mut scene = scene(MeshSection::unit_grid(96, 96), 96 * 96);
+        let mut scene = benchmark_scene(MeshSection::unit_grid(96, 96), 96 * 96);
         scene.material.dt = 3.0 * scene.max_stable_dt;
         let blow_up = |sweeps| {
             let mut solver = solver(&scene, 2, sweeps);

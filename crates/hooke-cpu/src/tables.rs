@@ -233,17 +233,14 @@ pub(crate) fn scatter_tables(
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
-    use hooke_core::scene::{MeshSection, SceneFile};
+    use hooke_core::scene::MeshSection;
+    use hooke_testkit::benchmark_scene;
 
     use super::*;
     use crate::layout::VertexOrder;
 
     fn topology_of(mesh: MeshSection, vertices: u32, method: Method) -> Topology {
-        let scene = SceneFile::benchmark(mesh, vertices)
-            .build(Path::new("bench"), true)
-            .expect("benchmark scene builds");
+        let scene = benchmark_scene(mesh, vertices);
         let numbering = Numbering::new(&scene.model, VertexOrder::Auto);
         build_topology(&scene.model, &numbering, method, 1.0)
     }

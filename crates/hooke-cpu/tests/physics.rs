@@ -1,12 +1,9 @@
 //! Physics tests: analytic cases, the f64 reference as oracle, and CPU method agreement.
-
-use std::path::Path;
-
 use glam::DVec3;
 use hooke_core::diagnostics::energy;
 use hooke_core::diagnostics::relative_l2;
 use hooke_core::reference::ReferenceSolver;
-use hooke_core::scene::{MeshSection, Scene, SceneFile};
+use hooke_core::scene::{MeshSection, Scene};
 use hooke_core::{
     Control, MassModel, Material, Model, ModelOptions, SimError, Solver, State, StiffnessModel,
     Wind,
@@ -14,7 +11,7 @@ use hooke_core::{
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::layout::VertexOrder;
 use hooke_cpu::{CpuOptions, CpuSolver, Method};
-use hooke_testkit::{Broken, assert_bar_rejects_broken, reference, state_of};
+use hooke_testkit::{Broken, assert_bar_rejects_broken, benchmark_scene, reference, state_of};
 
 fn cpu_solver(
     model: &Model,
@@ -70,14 +67,6 @@ fn grid_section(columns: u32, rows: u32) -> MeshSection {
 
 fn irregular_section(vertices: u32) -> MeshSection {
     MeshSection::unit_irregular(vertices, 11)
-}
-
-/// The comparability workload. Its dt exceeds the (conservative) stability bound on
-/// irregular meshes, where valences reach 12, so it is built as `hooke bench` builds it.
-fn benchmark_scene(mesh: MeshSection, vertex_count: u32) -> Scene {
-    SceneFile::benchmark(mesh, vertex_count)
-        .build(Path::new("bench"), true)
-        .expect("benchmark scene builds")
 }
 
 fn two_masses(pinned: Vec<u32>, stretch: f64, k: f64, m: f64) -> Model {

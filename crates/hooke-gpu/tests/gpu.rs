@@ -6,12 +6,12 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use hooke_core::diagnostics::relative_l2;
-use hooke_core::scene::{MeshSection, Scene, SceneFile};
+use hooke_core::scene::{MeshSection, Scene};
 use hooke_core::{
     Drag, MassModel, Model, ModelOptions, PointForce, SimError, Solver, StiffnessModel, Wind,
 };
 use hooke_gpu::{Accumulation, GpuContext, GpuError, GpuMethod, GpuSolver, test_context};
-use hooke_testkit::{Broken, assert_bar_rejects_broken, reference, state_of};
+use hooke_testkit::{Broken, assert_bar_rejects_broken, benchmark_scene, reference, state_of};
 
 /// A GPU solver of `scene`, driven by the scene's control.
 fn gpu_solver(
@@ -41,12 +41,6 @@ fn methods(context: &Arc<GpuContext>, scene: &Scene) -> Vec<GpuSolver> {
             Err(error) => panic!("{}: {error}", method.name()),
         })
         .collect()
-}
-
-fn benchmark_scene(mesh: MeshSection, vertices: u32) -> Scene {
-    SceneFile::benchmark(mesh, vertices)
-        .build(Path::new("bench"), true)
-        .expect("benchmark scene")
 }
 
 /// Relative L2 error after 100 steps allowed per accumulation precision, on the test's meshes.

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use hooke_core::reference::ReferenceSolver;
-use hooke_core::scene::{Scene, SceneFile};
+use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::{Solver, State};
 
 /// The folder of the scenes hooke ships (`scenes/` at the workspace root).
@@ -30,6 +30,15 @@ pub fn shipped_scene(name: &str) -> Scene {
 pub fn scene_from_text(text: &str, name: &str) -> Scene {
     SceneFile::parse(text, name)
         .and_then(|file| file.build(Path::new(name), false))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The benchmark workload on `mesh` (of `vertices` vertices), built as `hooke bench` builds
+/// it: its dt exceeds the (conservative) stability bound on irregular meshes, where valences
+/// reach 12.
+pub fn benchmark_scene(mesh: MeshSection, vertices: u32) -> Scene {
+    SceneFile::benchmark(mesh, vertices)
+        .build(Path::new("bench"), true)
         .unwrap_or_else(|e| panic!("{e}"))
 }
 
