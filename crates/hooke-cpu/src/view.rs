@@ -1,10 +1,11 @@
 //! Read-only views of the buffers a kernel reads at arbitrary indices: the positions (three
 //! axes and, for rows gathered lane by lane, one point per vertex) and scatter's spring forces.
 //!
-//! They hold pointers, not slices. A sweep of several steps (see `crate::paired`) has one
+//! They hold pointers, not slices. A sweep of several steps (see `crate::sweep`) has one
 //! thread read positions around its band of vertices while another thread writes other slices
-//! of the same buffer; a shared slice over the whole buffer would claim that nobody writes any
-//! of it. A view reads 8 floats, or one point, at a time, and the code that makes a view over
+//! of the same buffer, and a scatter step block by block (`crate::blocks`) has one thread sum
+//! spring forces its band has written while another writes other rows; a shared slice over the
+//! whole buffer would claim that nobody writes any of it. A view reads 8 floats, or one point, at a time, and the code that makes a view over
 //! memory others write (with [`Positions::from_raw`]) guarantees that none of what is read is
 //! written while the view is in use.
 
