@@ -532,13 +532,6 @@ fn gather_slice<S: Simd, const POINTS: bool>(
     {
         // An irregular mesh's rows, read in order: zipped, without bounds checks per row.
         let offsets = &offsets[rows.clone()];
-        let add = |force: [S::V; 3], f: [S::V; 3]| {
-            [
-                simd.add(force[0], f[0]),
-                simd.add(force[1], f[1]),
-                simd.add(force[2], f[2]),
-            ]
-        };
         if let (Some(rest), Some(stiffness)) = (
             table.rest_length.whole_rows(),
             table.stiffness.uniform_row(),
@@ -548,7 +541,7 @@ fn gather_slice<S: Simd, const POINTS: bool>(
                 // SAFETY: as in `load_positions_row`.
                 let neighbor = unsafe { points.gather_points_at(simd, offsets, u32::MAX) };
                 let f = spring_force_rows(simd, own, neighbor, stiffness, simd.load(rest));
-                force = add(force, f);
+                force = add3(simd, force, f);
             }
         } else {
             for (row, offsets) in rows.zip(offsets) {
@@ -556,10 +549,8 @@ fn gather_slice<S: Simd, const POINTS: bool>(
                 let neighbor = unsafe { points.gather_points_at(simd, offsets, u32::MAX) };
                 let stiffness = simd.load(table.stiffness.row(row));
                 let rest = table.rest_length.load(simd, row);
-                force = add(
-                    force,
-                    spring_force_rows(simd, own, neighbor, stiffness, rest),
-                );
+                let f = spring_force_rows(simd, own, neighbor, stiffness, rest);
+                force = add3(simd, force, f);
             }
         }
         return force;
@@ -574,13 +565,30 @@ fn gather_slice<S: Simd, const POINTS: bool>(
             stiffness,
             table.rest_length.load(simd, row),
         );
-        force = [
-            simd.add(force[0], f[0]),
-            simd.add(force[1], f[1]),
-            simd.add(force[2], f[2]),
-        ];
+        force = add3(simd, force, f);
     }
     force
+}
+
+/// `a + b`, axis by axis.
+#[inline(always)]
+fn add3<S: Simd>(simd: S, a: [S::V; 3], b: [S::V; 3]) -> [S::V; 3] {
+    [
+        simd.add(a[0], b[0]),
+        simd.add(a[1], b[1]),
+        simd.add(a[2], b[2]),
+    ]
+}
+
+/// Each axis of `force` with its sign flipped in the lanes whose `sign` word has its top bit
+/// set (see [`Simd::flip_sign`]).
+#[inline(always)]
+fn flip_sign3<S: Simd>(simd: S, [x, y, z]: [S::V; 3], sign: &[u32; LANES]) -> [S::V; 3] {
+    [
+        simd.flip_sign(x, sign),
+        simd.flip_sign(y, sign),
+        simd.flip_sign(z, sign),
+    ]
 }
 
 /// Sums the incident spring forces of `slice`'s vertices from three axes. Flipping the sign
@@ -597,11 +605,7 @@ fn accumulate_slice<S: Simd>(
         let fx = load_row(simd, xs, &table.entry, row, !B_END, true);
         let fy = load_row(simd, ys, &table.entry, row, !B_END, true);
         let fz = load_row(simd, zs, &table.entry, row, !B_END, true);
-        force = [
-            simd.add(force[0], fx),
-            simd.add(force[1], fy),
-            simd.add(force[2], fz),
-        ];
+        force = add3(simd, force, [fx, fy, fz]);
     }
     force
 }
@@ -619,12 +623,8 @@ fn accumulate_points_slice<S: Simd>(
     if let Some(offsets) = table.entry.point_offsets() {
         for offsets in &offsets[rows] {
             // SAFETY: as below, and `IndexRows::new` made the offsets from those slots.
-            let [fx, fy, fz] = unsafe { points.gather_points_at(simd, offsets, !B_END) };
-            force = [
-                simd.add(force[0], simd.flip_sign(fx, offsets)),
-                simd.add(force[1], simd.flip_sign(fy, offsets)),
-                simd.add(force[2], simd.flip_sign(fz, offsets)),
-            ];
+            let f = unsafe { points.gather_points_at(simd, offsets, !B_END) };
+            force = add3(simd, force, flip_sign3(simd, f, offsets));
         }
         return force;
     }
@@ -632,12 +632,8 @@ fn accumulate_points_slice<S: Simd>(
         let index = table.entry.row(row);
         // SAFETY: `CpuSolver::new` builds every spring slot (masked) below the buffer's
         // length: the springs' rows and one row of zeros for padding.
-        let [fx, fy, fz] = unsafe { points.gather_points(simd, &index, !B_END) };
-        force = [
-            simd.add(force[0], simd.flip_sign(fx, &index)),
-            simd.add(force[1], simd.flip_sign(fy, &index)),
-            simd.add(force[2], simd.flip_sign(fz, &index)),
-        ];
+        let f = unsafe { points.gather_points(simd, &index, !B_END) };
+        force = add3(simd, force, flip_sign3(simd, f, &index));
     }
     force
 }
@@ -645,11 +641,18 @@ fn accumulate_points_slice<S: Simd>(
 #[inline(always)]
 fn add_extra<S: Simd>(simd: S, force: [S::V; 3], extra: Option<&Soa>, slice: usize) -> [S::V; 3] {
     match extra {
-        Some(extra) => [
-            simd.add(force[0], simd.load(&extra.axis(0)[slice])),
-            simd.add(force[1], simd.load(&extra.axis(1)[slice])),
-            simd.add(force[2], simd.load(&extra.axis(2)[slice])),
-        ],
+        Some(extra) => {
+            let [x, y, z] = extra.axes();
+            add3(
+                simd,
+                force,
+                [
+                    simd.load(&x[slice]),
+                    simd.load(&y[slice]),
+                    simd.load(&z[slice]),
+                ],
+            )
+        }
         None => force,
     }
 }
