@@ -53,13 +53,14 @@ pub struct StencilKinds {
 }
 
 impl StencilKinds {
-    /// The model's stencil, if it has one (see [`Stencil::of`]), and its bytes.
-    fn of(context: &GpuContext, model: &Model) -> Option<(Self, u64)> {
+    /// Bytes of the kinds' table on the GPU.
+    const BYTES: u64 = std::mem::size_of::<GpuStencil>() as u64;
+
+    /// The model's stencil, if it has one (see [`Stencil::of`]).
+    fn of(context: &GpuContext, model: &Model) -> Option<Self> {
         let stencil = Stencil::of(model)?;
-        let kinds = stencil.table();
-        let bytes = std::mem::size_of_val(&kinds) as u64;
-        let kinds = gpu::uniform(context, &kinds);
-        Some((Self { stencil, kinds }, bytes))
+        let kinds = gpu::uniform(context, &stencil.table());
+        Some(Self { stencil, kinds })
     }
 }
 
@@ -132,15 +133,17 @@ impl GpuModel {
             .then(|| StencilKinds::of(context, model))
             .flatten();
         let (topology, topology_bytes) = match (method, stencil) {
-            (GpuMethod::Gather, Some((stencil, bytes))) => (GpuTopology::Stencil(stencil), bytes),
+            (GpuMethod::Gather, Some(stencil)) => {
+                (GpuTopology::Stencil(stencil), StencilKinds::BYTES)
+            }
             (GpuMethod::Gather, None) => gather_adjacency(context, model)?,
             (GpuMethod::Scatter(_), stencil) => {
                 let springs = spring_records(model);
                 gpu::check_binding_size(context, "springs", bytes_of(&springs))?;
-                let bytes = bytes_of(&springs) + stencil.as_ref().map_or(0, |(_, bytes)| *bytes);
+                let bytes =
+                    bytes_of(&springs) + stencil.as_ref().map_or(0, |_| StencilKinds::BYTES);
                 // Tearing's restore rewrites the records.
                 let springs = storage(context, "springs", &springs, wgpu::BufferUsages::COPY_DST);
-                let stencil = stencil.map(|(stencil, _)| stencil);
                 (GpuTopology::Scatter { springs, stencil }, bytes)
             }
         };
@@ -290,7 +293,7 @@ impl GpuModel {
             }
             GpuTopology::Scatter { stencil, .. } => {
                 if stencil.take().is_some() {
-                    self.topology_bytes -= std::mem::size_of::<GpuStencil>() as u64;
+                    self.topology_bytes -= StencilKinds::BYTES;
                 }
             }
             GpuTopology::Gather { .. } => {}
