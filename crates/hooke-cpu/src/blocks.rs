@@ -71,10 +71,12 @@ impl Blocks {
         }
         // A block's first spring: the springs are ordered by their first end's block.
         let mut first_slot = vec![spring_count; blocks + 1];
-        for slot in (0..spring_count).rev() {
-            let a = springs.a.row(slot / LANES)[slot % LANES] as usize;
-            first_slot[a / SPRING_BLOCK as usize] = slot;
+        let firsts = (0..springs.a.len()).flat_map(|row| springs.a.row(row));
+        for (slot, a) in firsts.take(spring_count).enumerate() {
+            let block = &mut first_slot[a as usize / SPRING_BLOCK as usize];
+            *block = (*block).min(slot);
         }
+        // Blocks without springs start where the next one does.
         for k in (0..blocks).rev() {
             first_slot[k] = first_slot[k].min(first_slot[k + 1]);
         }
