@@ -34,10 +34,6 @@ const PARALLEL_FROM: usize = 1 << 12;
 /// Widest digit: 4096 counters per chunk stay in the first-level cache.
 const MAX_DIGIT_BITS: u32 = 12;
 
-/// Low key bits in [`Binning::sort_among`]'s filter: 128 KiB, which stays in the second-level
-/// cache.
-const FILTER_BITS: u32 = 20;
-
 /// Keys computed at a time before they are counted: a batch is a plain loop the compiler
 /// vectorises, which a key computed and counted per entry is not.
 const KEY_BATCH: usize = 256;
@@ -49,9 +45,6 @@ pub struct Binning {
     spare: Vec<Entry>,
     /// One histogram of the current digit per chunk, chunk after chunk.
     counts: Vec<u32>,
-    /// [`Binning::sort_among`]'s filter of wanted keys, a bit per value of their low bits
-    /// (all zero between sorts).
-    filter: Vec<u64>,
 }
 
 /// How a pass cuts `n` entries into chunks.
@@ -124,53 +117,6 @@ impl Binning {
             );
             std::mem::swap(&mut self.entries, &mut self.spare);
         }
-        &self.entries
-    }
-
-    /// [`Binning::sort`] restricted to the vertices whose key is one of `wanted` (sorted, no
-    /// repeats): every vertex of those keys, so each key's run holds the same entries in the
-    /// same order as in the full sort, and with them every window of its vertices.
-    pub fn sort_among(
-        &mut self,
-        n: usize,
-        bits: u32,
-        keys: impl Fn(usize, &mut [u32]) + Sync,
-        wanted: &[u32],
-    ) -> &[Entry] {
-        // A bit per key's low bits turns away nearly every vertex before a binary search.
-        let filter_bits = bits.min(FILTER_BITS);
-        let filter_mask = (1u32 << filter_bits) - 1;
-        self.filter.resize(1 << filter_bits.saturating_sub(6), 0);
-        for &key in wanted {
-            let bit = key & filter_mask;
-            self.filter[(bit >> 6) as usize] |= 1 << (bit & 63);
-        }
-        let filter = &self.filter;
-        let chunks = Chunks::new(n);
-        let found: Vec<Vec<Entry>> = (0..chunks.count)
-            .into_par_iter()
-            .map(|c| {
-                let mut found = Vec::new();
-                let vertices = c * chunks.len..((c + 1) * chunks.len).min(n);
-                for_each_key(vertices, &keys, |v, key| {
-                    let bit = key & filter_mask;
-                    if filter[(bit >> 6) as usize] & (1 << (bit & 63)) != 0
-                        && wanted.binary_search(&key).is_ok()
-                    {
-                        found.push((Entry::from(key) << 32) | v as Entry);
-                    }
-                });
-                found
-            })
-            .collect();
-        for &key in wanted {
-            let bit = key & filter_mask;
-            self.filter[(bit >> 6) as usize] = 0;
-        }
-        self.entries.clear();
-        self.entries.extend(found.into_iter().flatten());
-        // Key in the high bits, vertex in the low: ordering entries orders by key, then vertex.
-        self.entries.sort_unstable();
         &self.entries
     }
 
@@ -318,40 +264,6 @@ mod tests {
                 .map(|&e| (key_of(e), vertex_of(e)))
                 .collect();
             assert_eq!(sorted, expected, "{n} keys of {bits} bits");
-        }
-    }
-
-    #[test]
-    fn sorting_among_some_keys_keeps_their_runs_of_the_full_sort() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
-        let (mut full, mut some) = (Binning::default(), Binning::default());
-        // Below and above the parallel threshold; keys narrower and wider than the filter.
-        for (n, bits, range) in [
-            (3000, 8, 1u64 << 8),
-            (PARALLEL_FROM + 5, 16, 900),
-            (150_000, 24, 40_000),
-            (60_000, 32, 1 << 32),
-        ] {
-            let keys: Vec<u32> = (0..n).map(|_| rng.random_range(0..range) as u32).collect();
-            let mut wanted: Vec<u32> = (0..40).map(|_| keys[rng.random_range(0..n)]).collect();
-            // Keys no vertex has, one sharing a wanted key's low 20 bits.
-            wanted.extend([u32::MAX, wanted[0] ^ (1 << 20)]);
-            wanted.sort_unstable();
-            wanted.dedup();
-            let expected: Vec<Entry> = full
-                .sort_keys(&keys, bits)
-                .iter()
-                .copied()
-                .filter(|&e| wanted.binary_search(&key_of(e)).is_ok())
-                .collect();
-            let copy = |first: usize, out: &mut [u32]| {
-                out.copy_from_slice(&keys[first..first + out.len()]);
-            };
-            let sorted = some.sort_among(n, bits, copy, &wanted).to_vec();
-            assert!(expected.len() >= 40, "{n} keys of {bits} bits");
-            assert_eq!(sorted, expected, "{n} keys of {bits} bits");
-            // The filter is left empty for the next sort.
-            assert!(some.filter.iter().all(|&word| word == 0));
         }
     }
 

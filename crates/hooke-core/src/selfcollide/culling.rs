@@ -136,6 +136,7 @@ pub struct Culling {
     nodes: Vec<Node>,
     /// The last proof's suspect patches, a flag each, and their vertices.
     suspect_patches: Vec<bool>,
+    suspect_list: Vec<u32>,
     suspects: Vec<u32>,
     /// The last proof's margin, and the distance at which a pair was clear, m.
     margin: f32,
@@ -211,26 +212,57 @@ impl Culling {
         self.margin
     }
 
-    /// Adds to the suspects every patch that a vertex at `point` may be within the distance
-    /// of, for a vertex that has moved further than the margin since the last proof. (The
-    /// other patches' boxes still hold: their vertices have not moved.)
-    pub fn widen(&mut self, point: Vec3) {
+    /// The last [`Proof::Local`]'s suspect patches, in the order they became suspect.
+    pub fn suspect_patches(&self) -> &[u32] {
+        &self.suspect_list
+    }
+
+    /// The vertices of patch `p`.
+    pub fn members_of(&self, p: u32) -> &[u32] {
+        &self.members[self.slots(p)]
+    }
+
+    /// Calls `each` with every patch whose box at the last proof came within `reach` of the
+    /// box `low..high` along every axis (boxes no further apart than that on any axis).
+    pub fn patches_near(&self, low: Vec3, high: Vec3, reach: f32, mut each: impl FnMut(u32)) {
         let mut stack = vec![0u32];
         while let Some(node) = stack.pop() {
             let node = self.nodes[node as usize];
-            let outside = (node.low - point).max(point - node.high).max_element();
-            if outside >= self.clear_at {
+            let outside = (node.low - high).max(low - node.high).max_element();
+            if outside >= reach {
                 continue;
             }
             match node.children {
                 Some(children) => stack.extend(children),
-                None if !self.suspect_patches[node.first as usize] => {
-                    self.suspect_patches[node.first as usize] = true;
-                    self.widened += 1;
-                    self.suspects
-                        .extend_from_slice(&self.members[self.slots(node.first)]);
-                }
-                None => {}
+                None => each(node.first),
+            }
+        }
+    }
+
+    /// How many patches there are.
+    pub fn patch_count(&self) -> usize {
+        self.patches.len()
+    }
+
+    /// Patch `p`'s box at the last proof.
+    pub fn box_of(&self, p: u32) -> (Vec3, Vec3) {
+        let patch = &self.patches[p as usize];
+        (patch.low, patch.high)
+    }
+
+    /// Adds to the suspects every patch that a vertex at `point` may be within the distance
+    /// of, for a vertex that has moved further than the margin since the last proof. (The
+    /// other patches' boxes still hold: their vertices have not moved.)
+    pub fn widen(&mut self, point: Vec3) {
+        let mut found = Vec::new();
+        self.patches_near(point, point, self.clear_at, |p| found.push(p));
+        for p in found {
+            if !self.suspect_patches[p as usize] {
+                self.suspect_patches[p as usize] = true;
+                self.widened += 1;
+                self.suspect_list.push(p);
+                self.suspects
+                    .extend_from_slice(&self.members[self.slots(p)]);
             }
         }
     }
@@ -272,7 +304,9 @@ impl Culling {
             self.suspect_patches[q as usize] = true;
         }
         self.suspects.clear();
+        self.suspect_list.clear();
         for (p, _) in self.suspect_patches.iter().enumerate().filter(|(_, s)| **s) {
+            self.suspect_list.push(p as u32);
             self.suspects
                 .extend_from_slice(&self.members[self.slots(p as u32)]);
         }
@@ -796,7 +830,7 @@ fn morton(unit: Vec3) -> u64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use rand::{RngExt, SeedableRng};
 
     use super::*;
@@ -805,14 +839,14 @@ mod tests {
 
     /// The springs of the generator's grid, `columns` vertices a row (the scripts place the
     /// vertices themselves).
-    fn grid_springs(columns: u32, rows: u32) -> Vec<[u32; 2]> {
+    pub(crate) fn grid_springs(columns: u32, rows: u32) -> Vec<[u32; 2]> {
         let mesh = grid(columns, rows, [1.0, 1.0], GridPlane::Xz, glam::DVec3::ZERO);
         mesh.edges().iter().map(|e| [e.a, e.b]).collect()
     }
 
     /// The sheet at step `t` of `steps`: falling, turning about the vertical, its far part
     /// folded over a crease until it lies on the near part, every vertex jittered.
-    fn folding_sheet(
+    pub(crate) fn folding_sheet(
         side: u32,
         spacing: f32,
         t: u32,
@@ -926,13 +960,23 @@ mod tests {
             grids: 4,
             window: 4,
         };
+        // Cells of about nine vertices of a sheet and windows of three: windows fill up, and
+        // with the vertices of patches beside a suspect one (which a local pass must sort).
+        let crowded = SelfCollision {
+            cell_size: 3.0 * spacing as f64,
+            window: 3,
+            ..config
+        };
         let scripts: [(&str, Script, u32, u32); 3] = [
             ("fold", folding_sheet, 40, 1),
             ("stacked", stacked_sheets, 32, 2),
             ("squeezed", squeezed_sheet, 48, 1),
         ];
         let (mut widened, mut backed_off) = (0, 0);
-        for (name, script, side, sheets) in scripts {
+        let runs = [config, crowded]
+            .into_iter()
+            .flat_map(|config| scripts.map(|script| (config, script)));
+        for (config, (name, script, side, sheets)) in runs {
             let one = grid_springs(side, side);
             // Each sheet its own copy of the grid's springs.
             let ends: Vec<[u32; 2]> = (0..sheets)

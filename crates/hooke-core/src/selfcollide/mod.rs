@@ -14,12 +14,14 @@
 //! two grids is corrected once.
 //!
 //! Keys hash the cell's integer coordinates (Teschner et al. 2003) into `key_bits` bits, so the
-//! grid needs no bounds; a hash collision only puts unrelated points in the window, where the
-//! distance test rejects them. Everything here is float32, the same arithmetic as the GPU's
+//! grid needs no bounds. A hash collision puts the vertices of far cells in the same run of
+//! keys; a window passes over them (it counts only vertices of its own cell), so what a window
+//! holds depends only on which vertices share the cell. Everything here is float32, the same arithmetic as the GPU's
 //! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
 
 mod binning;
 mod culling;
+mod nearby;
 mod points;
 mod wide;
 
@@ -30,6 +32,7 @@ use rayon::prelude::*;
 
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
+use nearby::Nearby;
 pub use points::Points;
 
 use crate::{Adjacency, Model};
@@ -166,7 +169,12 @@ impl GridKeys {
 
     #[inline(always)]
     fn of(&self, p: Vec3) -> u32 {
-        cell_key(cell_of(p, self.inverse_cell, self.offset), self.bits)
+        cell_key(self.cell(p), self.bits)
+    }
+
+    #[inline(always)]
+    fn cell(&self, p: Vec3) -> IVec3 {
+        cell_of(p, self.inverse_cell, self.offset)
     }
 
     /// The keys of `points`' first `out.len()`, in a loop the compiler vectorises.
@@ -178,28 +186,56 @@ impl GridKeys {
     }
 }
 
-/// The vertices of grid `k` in sorted order, with their keys.
+/// The vertices in sorted order by `keys`, with their keys.
 fn sorted_for_grid<'a>(
     binning: &'a mut Binning,
     positions: &[Vec3],
-    config: &SelfCollision,
-    k: u32,
+    keys: &GridKeys,
 ) -> &'a [Entry] {
-    let keys = GridKeys::new(positions.len(), config, k);
     binning.sort(positions.len(), keys.bits, |first, out| {
         keys.batch(&positions[first..], out)
     })
 }
 
-/// The window of sorted slot `j`: up to `window` slots on each side, nearest first, that
-/// hold the same key (the same cell, or one hashed alike); below `j`, then above. Yields the
-/// vertices.
-fn window_of(j: usize, window: u32, sorted: &[Entry]) -> impl Iterator<Item = u32> + '_ {
-    let (w, key) = (window as usize, key_of(sorted[j]));
-    let same = move |&m: &usize| key_of(sorted[m]) == key;
-    let below = (j.saturating_sub(w)..j).rev().take_while(same);
-    let above = (j + 1..(j + w + 1).min(sorted.len())).take_while(same);
-    below.chain(above).map(|m| vertex_of(sorted[m]))
+/// The window of sorted slot `j`: the `window` slots nearest it on each side whose entry
+/// lies in the same cell (`in_cell`), below `j` first, then above, nearest first. They are
+/// looked for among the slots of the same key, which also hold the vertices of far cells
+/// hashed alike: those are passed over, so they take no place in a window, and the window
+/// depends only on which vertices share the cell. Yields the entries' indices.
+fn window_of<'a>(
+    j: usize,
+    window: u32,
+    sorted: &'a [Entry],
+    positions: &'a [Vec3],
+    keys: &'a GridKeys,
+) -> impl Iterator<Item = u32> + 'a {
+    let cell = keys.cell(positions[vertex_of(sorted[j]) as usize]);
+    let in_cell = move |f: u32| keys.cell(positions[f as usize]) == cell;
+    let w = window as usize;
+    same_key_run((0..j).rev(), sorted, j, w, in_cell).chain(same_key_run(
+        j + 1..sorted.len(),
+        sorted,
+        j,
+        w,
+        in_cell,
+    ))
+}
+
+/// The first `w` entries of `slots` in `sorted` that `in_cell` takes, up to the first slot
+/// whose key is not slot `j`'s.
+fn same_key_run<'a, I: Iterator<Item = usize> + 'a>(
+    slots: I,
+    sorted: &'a [Entry],
+    j: usize,
+    w: usize,
+    in_cell: impl Fn(u32) -> bool + 'a,
+) -> impl Iterator<Item = u32> + 'a {
+    let key = key_of(sorted[j]);
+    slots
+        .take_while(move |&m| key_of(sorted[m]) == key)
+        .map(move |m| vertex_of(sorted[m]))
+        .filter(move |&f| in_cell(f))
+        .take(w)
 }
 
 /// Sorted slots per parallel task of the window test.
@@ -268,10 +304,10 @@ const MOST_UNPROVED: u32 = 64;
 pub struct Resolver {
     binning: Binning,
     culling: Culling,
-    /// The step's positions in mesh order, copied only when the passes run.
+    /// The step's positions in mesh order, copied only when full passes run.
     positions: Vec<Vec3>,
-    /// The suspect vertices' keys in the current grid.
-    suspect_keys: Vec<u32>,
+    /// What local passes sort: the suspects and the vertices that may share a cell with one.
+    nearby: Nearby,
     /// How far each vertex has moved this step (the sum of its moves' lengths), m, and the
     /// vertices that have.
     travelled: Vec<f32>,
@@ -293,7 +329,7 @@ impl Default for Resolver {
             binning: Binning::default(),
             culling: Culling::default(),
             positions: Vec::new(),
-            suspect_keys: Vec::new(),
+            nearby: Nearby::default(),
             travelled: Vec::new(),
             movers: Vec::new(),
             local_passes: 0,
@@ -309,16 +345,15 @@ impl Resolver {
     /// [`resolve`]: the same moves in the same order. The passes are skipped when the culling
     /// shows that no unjoined pair is closer than the distance, since then none would move.
     /// When it shows that only a few vertices' pairs can be, a pass tests only their windows:
-    /// it sorts only the vertices that share a key with one of them (every vertex's key is
-    /// computed, since hashing gives far cells the same key), which gives each such key the
-    /// same run of vertices as the full sort, and so each window the same vertices. A vertex
-    /// that has moved further than the culling's margin widens the suspects to every patch it
-    /// may have come near. After a proof that left passes to run in full, the next 1, 2, 4 ...
-    /// up to 64 steps run the full passes without one.
+    /// it sorts only them and the vertices that may share a cell with one of them (see
+    /// [`nearby`]), which gives each of their windows the same vertices as the full sort. A
+    /// vertex that has moved further than the culling's margin widens the suspects to every
+    /// patch it may have come near. After a proof that left passes to run in full, the next
+    /// 1, 2, 4 ... up to 64 steps run the full passes without one.
     ///
-    /// `points` are read where their owner keeps them; only a step whose passes run copies
-    /// them into mesh order. The culling keeps their places ([`Points::place`]), so one
-    /// resolver serves one owner's positions.
+    /// `points` are read where their owner keeps them; only a step whose full passes run
+    /// copies them all into mesh order. The culling keeps their places ([`Points::place`]), so
+    /// one resolver serves one owner's positions.
     pub fn resolve<P: Points + ?Sized>(
         &mut self,
         points: &P,
@@ -344,39 +379,57 @@ impl Resolver {
                 Proof::Nothing => false,
             }
         };
-        let mut positions = std::mem::take(&mut self.positions);
-        points.copy_into(&mut positions);
-        let all_moves = self.passes(&mut positions, weights, adjacency, config, tried, local);
-        self.positions = positions;
-        all_moves
+        self.passes(points, weights, adjacency, config, tried, local)
     }
 
-    /// The passes of a step the culling did not clear, on its positions in mesh order.
-    fn passes(
+    /// The passes of a step the culling did not clear.
+    fn passes<P: Points + ?Sized>(
         &mut self,
-        positions: &mut [Vec3],
+        points: &P,
         weights: &[f32],
         adjacency: &Adjacency,
         config: &SelfCollision,
         tried: bool,
         mut local: bool,
     ) -> Vec<(u32, Vec3)> {
-        self.travelled.resize(positions.len(), 0.0);
+        let n = points.count();
+        self.travelled.resize(n, 0.0);
+        if local {
+            self.nearby.begin(n, self.culling.patch_count());
+        }
         let mut all_moves = Vec::new();
+        let mut copied = false;
         for k in 0..config.grids {
-            local &= self.culling.suspects().len() * self.local_at_most <= positions.len();
+            local &= self.culling.suspects().len() * self.local_at_most <= n;
             let moves = if local {
                 self.local_passes += 1;
-                self.local_pass(positions, weights, adjacency, config, k)
+                self.nearby
+                    .cover(&self.culling, points, config.cell_size as f32);
+                let moves = self.local_pass(n, weights, adjacency, config, k);
+                self.nearby.apply(&moves);
+                self.widen_past_movers(&moves);
+                moves
             } else {
-                full_pass(&mut self.binning, positions, weights, adjacency, config, k)
+                if !copied {
+                    // Every position in mesh order, moved as the local passes so far moved them.
+                    points.copy_into(&mut self.positions);
+                    apply(&mut self.positions, &all_moves);
+                    copied = true;
+                }
+                let moves = full_pass(
+                    &mut self.binning,
+                    &self.positions,
+                    weights,
+                    adjacency,
+                    config,
+                    k,
+                );
+                apply(&mut self.positions, &moves);
+                moves
             };
-            apply(positions, &moves);
-            if local {
-                self.widen_past_movers(positions, &moves);
-            }
             all_moves.extend(moves);
         }
+        self.nearby.clear();
         for v in self.movers.drain(..) {
             self.travelled[v as usize] = 0.0;
         }
@@ -393,7 +446,7 @@ impl Resolver {
 
     /// Counts each move into its vertex's travel, and widens the suspects around every vertex
     /// that has now travelled further than the margin (a tenth of it is left for rounding).
-    fn widen_past_movers(&mut self, positions: &[Vec3], moves: &[(u32, Vec3)]) {
+    fn widen_past_movers(&mut self, moves: &[(u32, Vec3)]) {
         let limit = 0.9 * self.culling.margin();
         for &(v, c) in moves {
             let travelled = &mut self.travelled[v as usize];
@@ -402,40 +455,41 @@ impl Resolver {
             }
             *travelled += c.length();
             if *travelled >= limit {
-                self.culling.widen(positions[v as usize]);
+                let point = self.nearby.position(v);
+                self.culling.widen(point);
+                self.nearby.moved_far(point);
             }
         }
     }
 
-    /// Grid `k`'s pass over the culling's suspect vertices.
+    /// Grid `k`'s pass over the nearby vertices (of a mesh of `n`), testing the suspects.
     fn local_pass(
         &mut self,
-        positions: &[Vec3],
+        n: usize,
         weights: &[f32],
         adjacency: &Adjacency,
         config: &SelfCollision,
         k: u32,
     ) -> Vec<(u32, Vec3)> {
-        let keys = GridKeys::new(positions.len(), config, k);
-        self.suspect_keys.clear();
-        self.suspect_keys.extend(
-            self.culling
-                .suspects()
-                .iter()
-                .map(|&v| keys.of(positions[v as usize])),
-        );
-        self.suspect_keys.sort_unstable();
-        self.suspect_keys.dedup();
-        let sorted = self.binning.sort_among(
-            positions.len(),
-            keys.bits,
-            |first, out| keys.batch(&positions[first..], out),
-            &self.suspect_keys,
-        );
+        // Keyed as a full pass keys them: the key bits follow the mesh's vertex count.
+        let keys = GridKeys::new(n, config, k);
+        let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
+        let sorted = self.binning.sort(vertices.len(), keys.bits, |first, out| {
+            keys.batch(&positions[first..], out)
+        });
         let culling = &self.culling;
-        window_moves(sorted, positions, weights, adjacency, config, |v| {
-            culling.is_suspect(v)
-        })
+        let pass = Pass {
+            keys: &keys,
+            positions,
+            weights,
+            adjacency,
+            config,
+        };
+        pass.moves(
+            sorted,
+            |slot| vertices[slot as usize],
+            |slot| culling.is_suspect(vertices[slot as usize]),
+        )
     }
 
     /// The culling, with its counts of steps cleared and not.
@@ -480,54 +534,74 @@ fn full_pass(
     config: &SelfCollision,
     k: u32,
 ) -> Vec<(u32, Vec3)> {
-    let sorted = sorted_for_grid(binning, positions, config, k);
-    window_moves(sorted, positions, weights, adjacency, config, |_| true)
+    let keys = GridKeys::new(positions.len(), config, k);
+    let sorted = sorted_for_grid(binning, positions, &keys);
+    let pass = Pass {
+        keys: &keys,
+        positions,
+        weights,
+        adjacency,
+        config,
+    };
+    pass.moves(sorted, |v| v, |_| true)
 }
 
-/// One pass's moves, in sorted order: each vertex of `sorted` that `tested` names pushed away
-/// from the unjoined vertices of its window closer than the distance.
-fn window_moves(
-    sorted: &[Entry],
-    positions: &[Vec3],
-    weights: &[f32],
-    adjacency: &Adjacency,
-    config: &SelfCollision,
-    tested: impl Fn(u32) -> bool + Sync,
-) -> Vec<(u32, Vec3)> {
-    let distance = config.distance as f32;
-    // Most vertices are alone in their cell: only those with a same-key neighbour in sorted
-    // order ("crowded") are looked at, and only nonzero moves are kept.
-    (0..sorted.len().div_ceil(WINDOW_TASK))
-        .into_par_iter()
-        .flat_map_iter(|task| {
-            let slots = task * WINDOW_TASK..((task + 1) * WINDOW_TASK).min(sorted.len());
-            // Checked before touching the vertex: its data sits at a random address.
-            let crowded: Vec<usize> = slots
-                .filter(|&j| !alone(j, sorted) && tested(vertex_of(sorted[j])))
-                .collect();
-            let mut moves = Vec::new();
-            for (i, &j) in crowded.iter().enumerate() {
-                // A crowded slot's window holds only crowded slots, so fetching each one's
-                // position ahead of time covers most of the window.
-                if let Some(&ahead) = crowded.get(i + PREFETCH_AHEAD) {
-                    prefetch(&positions[vertex_of(sorted[ahead]) as usize]);
+/// What one grid's pass tests its windows with.
+struct Pass<'a> {
+    keys: &'a GridKeys,
+    /// The positions of the sorted entries, by entry index.
+    positions: &'a [Vec3],
+    weights: &'a [f32],
+    adjacency: &'a Adjacency,
+    config: &'a SelfCollision,
+}
+
+impl Pass<'_> {
+    /// The moves, in sorted order: each entry of `sorted` that `tested` names pushed away from
+    /// the unjoined vertices of its window closer than the distance. `vertex` gives an entry's
+    /// mesh vertex (entries index [`Pass::positions`]).
+    fn moves(
+        &self,
+        sorted: &[Entry],
+        vertex: impl Fn(u32) -> u32 + Sync,
+        tested: impl Fn(u32) -> bool + Sync,
+    ) -> Vec<(u32, Vec3)> {
+        let (distance, positions) = (self.config.distance as f32, self.positions);
+        // Most vertices are alone in their cell: only those with a same-key neighbour in
+        // sorted order ("crowded") are looked at, and only nonzero moves are kept.
+        (0..sorted.len().div_ceil(WINDOW_TASK))
+            .into_par_iter()
+            .flat_map_iter(|task| {
+                let slots = task * WINDOW_TASK..((task + 1) * WINDOW_TASK).min(sorted.len());
+                // Checked before touching the vertex: its data sits at a random address.
+                let crowded: Vec<usize> = slots
+                    .filter(|&j| !alone(j, sorted) && tested(vertex_of(sorted[j])))
+                    .collect();
+                let mut moves = Vec::new();
+                for (i, &j) in crowded.iter().enumerate() {
+                    // A crowded slot's window holds only crowded slots, so fetching each
+                    // one's position ahead of time covers most of the window.
+                    if let Some(&ahead) = crowded.get(i + PREFETCH_AHEAD) {
+                        prefetch(&positions[vertex_of(sorted[ahead]) as usize]);
+                    }
+                    let e = vertex_of(sorted[j]);
+                    let (xp, p) = (positions[e as usize], vertex(e));
+                    let mut correction = Vec3::ZERO;
+                    for f in window_of(j, self.config.window, sorted, positions, self.keys) {
+                        let d = xp - positions[f as usize];
+                        correction +=
+                            push(self.adjacency, self.weights, distance, [p, vertex(f)], d);
+                    }
+                    // A pinned vertex does not move (its weight is read only now: most
+                    // vertices have no close pair).
+                    if correction != Vec3::ZERO && self.weights[p as usize] > 0.0 {
+                        moves.push((p, correction));
+                    }
                 }
-                let p = vertex_of(sorted[j]);
-                let xp = positions[p as usize];
-                let mut correction = Vec3::ZERO;
-                for q in window_of(j, config.window, sorted) {
-                    let d = xp - positions[q as usize];
-                    correction += push(adjacency, weights, distance, [p, q], d);
-                }
-                // A pinned vertex does not move (its weight is read only now: most vertices
-                // have no close pair).
-                if correction != Vec3::ZERO && weights[p as usize] > 0.0 {
-                    moves.push((p, correction));
-                }
-            }
-            moves
-        })
-        .collect()
+                moves
+            })
+            .collect()
+    }
 }
 
 fn apply(positions: &mut [Vec3], moves: &[(u32, Vec3)]) {
@@ -570,11 +644,12 @@ pub fn approximate_pairs(
     let mut binning = Binning::default();
     let mut pairs: Vec<(u32, u32)> = (0..config.grids)
         .flat_map(|k| {
-            let sorted = sorted_for_grid(&mut binning, positions, config, k);
+            let keys = GridKeys::new(positions.len(), config, k);
+            let sorted = sorted_for_grid(&mut binning, positions, &keys);
             let mut found = Vec::new();
             for (j, &entry) in sorted.iter().enumerate() {
                 let p = vertex_of(entry);
-                for q in window_of(j, config.window, sorted) {
+                for q in window_of(j, config.window, sorted, positions, &keys) {
                     if p < q && close_and_unjoined(positions, adjacency, distance, p, q) {
                         found.push((p, q));
                     }
@@ -735,6 +810,39 @@ mod tests {
         // Found pairs are real pairs.
         let found = approximate_pairs(&points, &adjacency, &config(4));
         assert!(found.iter().all(|p| exact.binary_search(p).is_ok()));
+    }
+
+    /// A close pair whose vertex numbers lie around `window` vertices of a far cell hashed to
+    /// the same key: the far vertices take no place in the pair's windows, so it is found.
+    #[test]
+    fn far_cells_hashed_alike_take_no_place_in_a_window() {
+        let config = SelfCollision {
+            distance: 0.04,
+            cell_size: 0.1,
+            grids: 1,
+            window: 3,
+        };
+        let n = 2 + config.window as usize;
+        let bits = key_bits(n);
+        let home = IVec3::new(2, 0, 2);
+        let far = (1..)
+            .map(|i| home + IVec3::new(i, 0, 0))
+            .find(|&cell| cell_key(cell, bits) == cell_key(home, bits))
+            .expect("a cell hashed alike");
+        assert!(far.x - home.x > 1, "{far}");
+        let centre = |cell: IVec3| (cell.as_vec3() + 0.5) * config.cell_size as f32;
+        // Vertex 0 and the last are the pair, in the home cell; the others share the far cell.
+        let mut points: Vec<Vec3> = (0..n)
+            .map(|i| centre(far) + Vec3::X * 0.001 * i as f32)
+            .collect();
+        points[0] = centre(home);
+        points[n - 1] = centre(home) + Vec3::new(0.01, 0.0, 0.0);
+        let adjacency = no_springs(n);
+        let found = approximate_pairs(&points, &adjacency, &config);
+        assert!(found.contains(&(0, n as u32 - 1)), "{found:?}");
+        let mut moved = points.clone();
+        let moves = resolve(&mut moved, &vec![1.0; n], &adjacency, &config);
+        assert!(moved[0].distance(moved[n - 1]) > 0.0399, "{moves:?}");
     }
 
     #[test]

@@ -24,9 +24,9 @@ pub struct SelfCollidePass {
     cell_keys: wgpu::ComputePipeline,
     correct: wgpu::ComputePipeline,
     apply: wgpu::ComputePipeline,
-    /// Per grid, by current position buffer.
+    /// Per grid, by current position buffer (both read the grid's cells).
     key_groups: Vec<[wgpu::BindGroup; 2]>,
-    correct_groups: [wgpu::BindGroup; 2],
+    correct_groups: Vec<[wgpu::BindGroup; 2]>,
     apply_groups: [wgpu::BindGroup; 2],
     bytes: u64,
 }
@@ -133,22 +133,27 @@ impl SelfCollidePass {
                 })
             })
             .collect();
-        let correct_groups = [0, 1].map(|current| {
-            bind_group(
-                context,
-                "self-collision correct",
-                &correct.get_bind_group_layout(0),
-                &[
-                    (0, uniforms[0].as_entire_binding()),
-                    (1, target(current).as_entire_binding()),
-                    (2, sort.sorted_pairs().as_entire_binding()),
-                    (4, gpu_model.scales.as_entire_binding()),
-                    (5, offsets.as_entire_binding()),
-                    (6, neighbors.as_entire_binding()),
-                    (7, corrections.as_entire_binding()),
-                ],
-            )
-        });
+        let correct_groups = uniforms
+            .iter()
+            .map(|u| {
+                [0, 1].map(|current| {
+                    bind_group(
+                        context,
+                        "self-collision correct",
+                        &correct.get_bind_group_layout(0),
+                        &[
+                            (0, u.as_entire_binding()),
+                            (1, target(current).as_entire_binding()),
+                            (2, sort.sorted_pairs().as_entire_binding()),
+                            (4, gpu_model.scales.as_entire_binding()),
+                            (5, offsets.as_entire_binding()),
+                            (6, neighbors.as_entire_binding()),
+                            (7, corrections.as_entire_binding()),
+                        ],
+                    )
+                })
+            })
+            .collect();
         let apply_groups = [0, 1].map(|current| {
             bind_group(
                 context,
@@ -204,10 +209,10 @@ impl SelfCollidePass {
         let n = self.vertex_count;
         // One workgroup per sort block.
         let blocks = self.sort.block_count();
-        for groups in &self.key_groups {
-            dispatch_groups_in(&mut pass, &self.cell_keys, &groups[current], blocks);
+        for (keys, correct) in self.key_groups.iter().zip(&self.correct_groups) {
+            dispatch_groups_in(&mut pass, &self.cell_keys, &keys[current], blocks);
             self.sort.encode(&mut pass);
-            dispatch_in(&mut pass, &self.correct, &self.correct_groups[current], n);
+            dispatch_in(&mut pass, &self.correct, &correct[current], n);
         }
         dispatch_in(&mut pass, &self.apply, &self.apply_groups[current], n);
     }

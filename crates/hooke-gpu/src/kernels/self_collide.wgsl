@@ -34,8 +34,12 @@ struct SelfUniforms {
 @group(0) @binding(8) var<storage, read_write> moved: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read_write> deltas: array<vec4<f32>>;
 
+fn cell_of(p: vec3<f32>) -> vec3<i32> {
+    return vec3<i32>(floor(p * cu.inverse_cell + vec3<f32>(cu.offset)));
+}
+
 fn cell_key(p: vec3<f32>) -> u32 {
-    let cell = bitcast<vec3<u32>>(vec3<i32>(floor(p * cu.inverse_cell + vec3<f32>(cu.offset))));
+    let cell = bitcast<vec3<u32>>(cell_of(p));
     let hash = (cell.x * 73856093u) ^ (cell.y * 19349663u) ^ (cell.z * 83492791u);
     if cu.key_bits >= 32u {
         return hash;
@@ -107,28 +111,42 @@ fn correct(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
         let xp = positions[p].xyz;
         let d2 = cu.distance * cu.distance;
         let key = slot.x;
-        // The window: same-key slots, nearest first, below j and then above (as on the CPU).
-        for (var m = j; m > 0u && j - m < cu.window; m--) {
+        let cell = cell_of(xp);
+        // The window: the nearest `window` slots of the same cell on each side, below j and
+        // then above (as on the CPU), among the slots of the same key; far cells hashed to
+        // the same key are passed over.
+        var found = 0u;
+        for (var m = j; m > 0u && found < cu.window; m--) {
             let other = pairs[m - 1u];
             if other.x != key {
                 break;
             }
-            correction += push(p, other.y, xp, wp, d2);
+            let xq = positions[other.y].xyz;
+            if all(cell_of(xq) == cell) {
+                found++;
+                correction += push(p, other.y, xp, xq, wp, d2);
+            }
         }
-        for (var m = j + 1u; m < n && m - j <= cu.window; m++) {
+        found = 0u;
+        for (var m = j + 1u; m < n && found < cu.window; m++) {
             let other = pairs[m];
             if other.x != key {
                 break;
             }
-            correction += push(p, other.y, xp, wp, d2);
+            let xq = positions[other.y].xyz;
+            if all(cell_of(xq) == cell) {
+                found++;
+                correction += push(p, other.y, xp, xq, wp, d2);
+            }
         }
     }
     corrections[p] = vec4<f32>(correction, 0.0);
 }
 
-// How far `p` (at `xp`, weight `wp`) moves away from `q`: zero unless unjoined and too close.
-fn push(p: u32, q: u32, xp: vec3<f32>, wp: f32, d2: f32) -> vec3<f32> {
-    let d = xp - positions[q].xyz;
+// How far `p` (at `xp`, weight `wp`) moves away from `q` (at `xq`): zero unless unjoined and
+// too close.
+fn push(p: u32, q: u32, xp: vec3<f32>, xq: vec3<f32>, wp: f32, d2: f32) -> vec3<f32> {
+    let d = xp - xq;
     let l2 = dot(d, d);
     if l2 >= d2 || joined(p, q) {
         return vec3<f32>(0.0);

@@ -1,0 +1,288 @@
+//! The vertices a local pass sorts: the suspects, and every vertex that may share a grid cell
+//! with one. A window holds only vertices of its own cell, so with these the local pass sees
+//! the same windows as a pass over every vertex, while sorting a few thousand vertices instead
+//! of all of them (and computing only their keys).
+//!
+//! A cleared vertex never moves and lies in its patch's box of the last proof. A suspect that
+//! has travelled less than the margin lies within that distance of its own patch's box; one
+//! that has travelled further is covered where it now is. Two points of one cell are less than
+//! a cell apart along every axis, so the patches whose boxes come that close (and the margin)
+//! hold every vertex a suspect can share a cell with.
+
+use glam::Vec3;
+
+use super::{Culling, Points};
+
+/// A local step's vertices, kept by the resolver so a step allocates nothing.
+#[derive(Debug, Default)]
+pub(super) struct Nearby {
+    /// The vertices, ascending (so the sort's ties fall in vertex order, as in a full pass).
+    vertices: Vec<u32>,
+    /// Their positions, moved by the step's passes so far.
+    positions: Vec<Vec3>,
+    /// Each mesh vertex's index in `vertices`, `u32::MAX` for the others.
+    slots: Vec<u32>,
+    /// `vertices` as a bit per mesh vertex (what `gather` lists in order).
+    marks: Vec<u64>,
+    /// The patches covered, a flag each, and in the order covered.
+    covered: Vec<bool>,
+    covered_list: Vec<u32>,
+    /// How many of the culling's suspect patches are covered.
+    suspects_covered: usize,
+    /// Where vertices that travelled past the margin have got to, still to be covered.
+    pending: Vec<Vec3>,
+}
+
+impl Nearby {
+    /// Starts a step of `n` vertices in `patches` patches, covering nothing.
+    pub fn begin(&mut self, n: usize, patches: usize) {
+        self.clear();
+        self.slots.resize(n, u32::MAX);
+        self.marks.resize(n.div_ceil(64), 0);
+        self.covered.resize(patches, false);
+    }
+
+    /// Ends a step: everything back to empty (only what the step touched is cleared).
+    pub fn clear(&mut self) {
+        for &v in &self.vertices {
+            self.slots[v as usize] = u32::MAX;
+            self.marks[v as usize / 64] = 0;
+        }
+        for &p in &self.covered_list {
+            self.covered[p as usize] = false;
+        }
+        self.vertices.clear();
+        self.positions.clear();
+        self.covered_list.clear();
+        self.suspects_covered = 0;
+        self.pending.clear();
+    }
+
+    /// Notes that a vertex has travelled past the margin to `point`: the next [`Nearby::cover`]
+    /// covers every vertex that may share a cell with it there.
+    pub fn moved_far(&mut self, point: Vec3) {
+        self.pending.push(point);
+    }
+
+    /// Adds every vertex that may share a cell `cell_size` wide with a suspect of `culling`,
+    /// or with a vertex at a point given to [`Nearby::moved_far`]; the new vertices' positions
+    /// are read from `points` (they have not moved).
+    pub fn cover<P: Points + ?Sized>(&mut self, culling: &Culling, points: &P, cell_size: f32) {
+        // A tenth of a percent for the cells' rounding.
+        let reach = cell_size * 1.001;
+        let mut added = Vec::new();
+        let mut add = |p: u32| added.push(p);
+        for &p in &culling.suspect_patches()[self.suspects_covered..] {
+            let (low, high) = culling.box_of(p);
+            culling.patches_near(low, high, reach + culling.margin(), &mut add);
+        }
+        self.suspects_covered = culling.suspect_patches().len();
+        for point in self.pending.drain(..) {
+            culling.patches_near(point, point, reach, &mut add);
+        }
+        let before = self.covered_list.len();
+        for p in added {
+            if !self.covered[p as usize] {
+                self.covered[p as usize] = true;
+                self.covered_list.push(p);
+                for &v in culling.members_of(p) {
+                    self.marks[v as usize / 64] |= 1 << (v % 64);
+                }
+            }
+        }
+        if self.covered_list.len() > before {
+            self.gather(points);
+        }
+    }
+
+    /// Lists the marked vertices in order, with their positions: the step's own for those
+    /// already listed, `points`' for the others.
+    fn gather<P: Points + ?Sized>(&mut self, points: &P) {
+        let (old_vertices, old_positions) = (
+            std::mem::take(&mut self.vertices),
+            std::mem::take(&mut self.positions),
+        );
+        for (w, &word) in self.marks.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let v = (w * 64) as u32 + bits.trailing_zeros();
+                bits &= bits - 1;
+                let slot = self.slots[v as usize];
+                self.positions.push(if slot == u32::MAX {
+                    points.at(points.place(v))
+                } else {
+                    old_positions[slot as usize]
+                });
+                self.vertices.push(v);
+            }
+        }
+        for (slot, &v) in self.vertices.iter().enumerate() {
+            self.slots[v as usize] = slot as u32;
+        }
+        debug_assert!(
+            old_vertices
+                .iter()
+                .all(|&v| self.slots[v as usize] != u32::MAX)
+        );
+    }
+
+    /// The vertices, ascending.
+    pub fn vertices(&self) -> &[u32] {
+        &self.vertices
+    }
+
+    /// Their positions, in the same order.
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Moves the vertices of `moves` (every one of them covered).
+    pub fn apply(&mut self, moves: &[(u32, Vec3)]) {
+        for &(v, c) in moves {
+            self.positions[self.slots[v as usize] as usize] += c;
+        }
+    }
+
+    /// Where vertex `v` (covered) is now.
+    pub fn position(&self, v: u32) -> Vec3 {
+        self.positions[self.slots[v as usize] as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashSet;
+
+    use rand::SeedableRng;
+
+    use super::*;
+    use crate::Adjacency;
+    use crate::selfcollide::culling::tests::{folding_sheet, grid_springs};
+    use crate::selfcollide::{GridKeys, Proof, SelfCollision};
+
+    const SIDE: u32 = 40;
+    const SPACING: f32 = 0.01;
+
+    /// Covers the suspects of `positions` (when the proof is local) and a point a vertex
+    /// travelled to, and checks that every vertex sharing a cell of any grid with one of
+    /// them is covered. Returns how many checked vertices were not suspects, or `None` if the
+    /// proof was not local.
+    fn check_cover(
+        positions: &[Vec3],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+        culling: &mut Culling,
+        nearby: &mut Nearby,
+        travelled_to: impl Fn(&Culling) -> Vec3,
+    ) -> Option<usize> {
+        if culling.prove(positions, adjacency, config.distance as f32) != Proof::Local {
+            return None;
+        }
+        nearby.begin(positions.len(), culling.patch_count());
+        let point = travelled_to(culling);
+        nearby.moved_far(point);
+        nearby.cover(culling, positions, config.cell_size as f32);
+        let covered: HashSet<u32> = nearby.vertices().iter().copied().collect();
+        assert!(nearby.vertices().is_sorted());
+        for (&v, &x) in nearby.vertices().iter().zip(nearby.positions()) {
+            assert_eq!(x, positions[v as usize]);
+        }
+        let mut beyond_suspects = 0;
+        for k in 0..config.grids {
+            let keys = GridKeys::new(positions.len(), config, k);
+            let mut cells: HashSet<_> = culling
+                .suspects()
+                .iter()
+                .map(|&s| keys.cell(positions[s as usize]))
+                .collect();
+            cells.insert(keys.cell(point));
+            for (v, &x) in positions.iter().enumerate() {
+                if cells.contains(&keys.cell(x)) {
+                    assert!(covered.contains(&(v as u32)), "grid {k}: vertex {v}");
+                    beyond_suspects += usize::from(!culling.is_suspect(v as u32));
+                }
+            }
+        }
+        nearby.clear();
+        assert!(nearby.vertices().is_empty());
+        Some(beyond_suspects)
+    }
+
+    /// Cells three springs wide, so a cell holds vertices of patches around a suspect one.
+    fn config() -> SelfCollision {
+        SelfCollision {
+            distance: f64::from(0.5 * SPACING),
+            cell_size: f64::from(3.0 * SPACING),
+            grids: 4,
+            window: 4,
+        }
+    }
+
+    /// On a sheet folding onto itself: every vertex that shares a cell of any grid with a
+    /// suspect, or with a point one of them travelled to, is covered.
+    #[test]
+    fn covers_every_vertex_that_shares_a_cell_with_a_suspect() {
+        let steps = 80;
+        let adjacency = Adjacency::from_springs((SIDE * SIDE) as usize, &grid_springs(SIDE, SIDE));
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        let (mut culling, mut nearby) = (Culling::default(), Nearby::default());
+        let (mut local_steps, mut beyond_suspects) = (0, 0);
+        for t in 0..=steps {
+            let positions = folding_sheet(SIDE, SPACING, t, steps, &mut rng);
+            // As if a pass had pushed a suspect onto the far corner of the sheet.
+            let corner = positions[0] + Vec3::splat(0.1 * SPACING);
+            let checked = check_cover(
+                &positions,
+                &adjacency,
+                &config(),
+                &mut culling,
+                &mut nearby,
+                |_| corner,
+            );
+            if let Some(checked) = checked {
+                local_steps += 1;
+                beyond_suspects += checked;
+            }
+        }
+        assert!(local_steps > 10, "{local_steps} local steps");
+        assert!(beyond_suspects > 1000, "{beyond_suspects}");
+    }
+
+    /// Two flat sheets two springs apart (further than the distance and the margin, closer
+    /// than a cell), one vertex of the lower one pushed close to another: the upper sheet's
+    /// vertices above the suspects share their cells but lie in patches whose boxes are
+    /// apart from the suspects' ones, and must be covered.
+    #[test]
+    fn covers_a_layer_within_a_cell_of_the_suspects() {
+        let one = grid_springs(SIDE, SIDE);
+        let n = SIDE * SIDE;
+        let ends: Vec<[u32; 2]> = one
+            .iter()
+            .copied()
+            .chain(one.iter().map(|&[a, b]| [a + n, b + n]))
+            .collect();
+        let adjacency = Adjacency::from_springs(2 * n as usize, &ends);
+        let mut positions: Vec<Vec3> = (0..2 * n)
+            .map(|v| {
+                let (x, z) = ((v % SIDE) as f32, ((v % n) / SIDE) as f32);
+                let y = if v < n { 0.0 } else { 2.0 };
+                Vec3::new(x, y, z) * SPACING
+            })
+            .collect();
+        // Vertex (20, 20) onto the one diagonally across from it that no spring joins.
+        let (a, b) = (20 * SIDE + 20, 21 * SIDE + 19);
+        positions[a as usize] = positions[b as usize] + Vec3::new(0.3 * SPACING, 0.0, 0.0);
+        let (mut culling, mut nearby) = (Culling::default(), Nearby::default());
+        let beyond = check_cover(
+            &positions,
+            &adjacency,
+            &config(),
+            &mut culling,
+            &mut nearby,
+            |_| Vec3::new(5.0, 2.0, 5.0) * SPACING,
+        );
+        let beyond = beyond.expect("a local proof");
+        assert!(culling.is_suspect(a) && !culling.is_suspect(a + n));
+        assert!(beyond > 100, "{beyond}");
+    }
+}
