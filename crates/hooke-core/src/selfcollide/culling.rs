@@ -36,7 +36,7 @@
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
 //! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
 
-use glam::{Vec3, Vec4};
+use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::Points;
@@ -76,10 +76,16 @@ struct Patch {
     centre: Vec3,
     /// `E_P`: the largest distance of a displacement from `centre`, m.
     spread: f32,
-    /// Bumped each time the references are renewed (cached gaps must be measured again).
-    version: u32,
-    /// The smallest `g_PQ` over its near pairs measured since the references were taken, m.
+    /// The sum of `c_P` at every renewal of the references, m: `shift + centre` is where the
+    /// patch has moved since it was built, in the frame every cached gap is kept in.
+    shift: DVec3,
+    /// The sum of `E_P` at every renewal, m: how much the renewals may have cost the cached
+    /// gaps of its near pairs.
+    renewed: f64,
+    /// The smallest `g_PQ` over its near pairs measured since the references were taken, m,
+    /// and the one before they were last taken (what sets when they are renewed).
     closest: f32,
+    earlier_closest: f32,
     /// The references' largest coordinate, m, kept from when they were taken (infinite if one
     /// is not finite: they are then renewed).
     reference_scale: f32,
@@ -88,16 +94,23 @@ struct Patch {
     high: Vec3,
 }
 
+impl Patch {
+    /// `shift + centre`, m.
+    fn moved(&self) -> DVec3 {
+        self.shift + self.centre.as_dvec3()
+    }
+}
+
 /// A pair of near patches and what was measured of it.
 #[derive(Clone, Copy, Debug)]
 struct NearPair {
     patches: [u32; 2],
-    /// `g_PQ`, m.
+    /// `g_PQ`, m (minus infinity until measured).
     gap: f32,
-    /// `c_P - c_Q` when `gap` was measured.
-    offset: Vec3,
-    /// The patches' versions when `gap` was measured (`u32::MAX`: never).
-    versions: [u32; 2],
+    /// The patches' `shift + centre`, P's less Q's, when `gap` was measured.
+    offset: DVec3,
+    /// The patches' `renewed` when `gap` was measured.
+    renewed: [f64; 2],
     /// Whether the pair was within the distance plus the margin when last checked.
     suspect: bool,
 }
@@ -346,8 +359,10 @@ impl Culling {
             .map(|references| Patch {
                 centre: Vec3::ZERO,
                 spread: 0.0,
-                version: 0,
+                shift: DVec3::ZERO,
+                renewed: 0.0,
                 closest: f32::INFINITY,
+                earlier_closest: f32::INFINITY,
                 reference_scale: scale_of(references),
                 low: Vec3::ZERO,
                 high: Vec3::ZERO,
@@ -386,9 +401,9 @@ impl Culling {
                     .filter(move |&&q| q >= p as u32)
                     .map(move |&q| NearPair {
                         patches: [p as u32, q],
-                        gap: 0.0,
-                        offset: Vec3::ZERO,
-                        versions: [u32::MAX; 2],
+                        gap: f32::NEG_INFINITY,
+                        offset: DVec3::ZERO,
+                        renewed: [0.0; 2],
                         suspect: false,
                     })
             })
@@ -464,8 +479,8 @@ impl Culling {
                     let [p, q] = pair.patches;
                     let (a, b) = (&this.patches[p as usize], &this.patches[q as usize]);
                     pair.gap = gap;
-                    pair.offset = a.centre - b.centre;
-                    pair.versions = [a.version, b.version];
+                    pair.offset = a.moved() - b.moved();
+                    pair.renewed = [a.renewed, b.renewed];
                 }
                 (found != Found::default() || measured.is_some()).then_some((
                     pair.patches,
@@ -499,11 +514,13 @@ impl Culling {
     ) -> (Found, Option<f32>) {
         let [p, q] = pair.patches;
         let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
-        if pair.versions == [a.version, b.version] {
-            let drift = (a.centre - b.centre - pair.offset).length();
-            if pair.gap - drift - a.spread - b.spread >= check.suspect_at {
-                return (Found::default(), None);
-            }
+        // The cached gap, less what renewals since (their spreads) and the patches' drift
+        // towards each other may have taken off it.
+        let drift = (a.moved() - b.moved() - pair.offset).length();
+        let renewed = (a.renewed - pair.renewed[0]) + (b.renewed - pair.renewed[1]);
+        let spreads = f64::from(a.spread) + f64::from(b.spread);
+        if f64::from(pair.gap) - renewed - drift - spreads >= f64::from(check.suspect_at) {
+            return (Found::default(), None);
         }
         let current = |slot: usize| check.points.at(self.places[slot]);
         if pair.suspect {
@@ -717,13 +734,24 @@ fn measure_patch(
     // while none is measured or one is in contact), so a patch renews only when it has bent
     // or turned enough to matter. References that are not finite (say, taken from a state
     // that was not) are renewed.
-    let renew_above = (0.25 * (patch.closest - distance)).max(0.1 * distance);
+    let closest = if patch.closest.is_finite() {
+        patch.closest
+    } else {
+        patch.earlier_closest
+    };
+    let renew_above = (0.25 * (closest - distance)).max(0.1 * distance);
     if patch.reference_scale.is_finite() && spread <= renew_above {
         (patch.centre, patch.spread) = (centre, spread);
     } else {
+        // The new references are the old ones moved by `centre` and by at most `spread`
+        // besides, so each cached gap, kept in the old frame, holds less `spread` (and the
+        // rounding of both, a few units in their last place, which the chain of renewals
+        // between two measurements adds up).
         *references = *positions;
+        patch.shift += centre.as_dvec3();
+        patch.renewed += f64::from(spread) * (1.0 + 1e-5) + f64::from(centre.length()) * 1e-6;
         (patch.centre, patch.spread) = (Vec3::ZERO, 0.0);
-        patch.version = patch.version.wrapping_add(1) % u32::MAX;
+        patch.earlier_closest = closest;
         patch.closest = f32::INFINITY;
         patch.reference_scale = scale;
     }
@@ -1117,6 +1145,51 @@ pub(crate) mod tests {
         assert_eq!(local.local_passes(), 4);
     }
 
+    /// Checks the proof of `positions` against the exact search: clear exactly when no
+    /// unjoined pair is within `distance`, and otherwise every vertex within the distance and
+    /// the margin of an unjoined one suspect, and no patch suspect without one within a little
+    /// more (the rounding's margin). `expected`: whether the state is clear (the test's own).
+    fn check_proof(
+        culling: &mut Culling,
+        positions: &[Vec3],
+        adjacency: &Adjacency,
+        distance: f32,
+        expected: bool,
+    ) {
+        let close = exact_pairs(positions, adjacency, f64::from(distance));
+        assert_eq!(close.is_empty(), expected, "the test's own state");
+        let proof = culling.prove(positions, adjacency, distance);
+        assert_eq!(proof == Proof::Clear, expected);
+        if !expected {
+            assert_eq!(proof, Proof::Local);
+            let wide = exact_pairs(positions, adjacency, f64::from(distance * 1.26));
+            for &(a, b) in &wide {
+                assert!(culling.is_suspect(a) && culling.is_suspect(b), "{a} {b}");
+            }
+            for &v in culling.suspects() {
+                let patch = culling.patch_of[v as usize];
+                assert!(
+                    wide.iter().any(|&(a, b)| [a, b]
+                        .iter()
+                        .any(|&w| culling.patch_of[w as usize] == patch)),
+                    "suspect patch {patch} has no close pair"
+                );
+            }
+        }
+    }
+
+    /// A grid of `columns` x `rows` squeezed along x until each vertex's unjoined neighbour
+    /// two along lies `gap` away, at height `y`.
+    fn squeezed_grid(columns: u32, rows: u32, spacing: f32, gap: f32, y: f32) -> Vec<Vec3> {
+        let squeeze = gap / (2.0 * spacing);
+        (0..columns * rows)
+            .map(|v| {
+                let (j, i) = (v % columns, v / columns);
+                Vec3::new(j as f32 * spacing * squeeze, y, i as f32 * spacing)
+            })
+            .collect()
+    }
+
     /// Every verdict of `clear` against the exact search, on a grid squeezed along x until
     /// each vertex's unjoined neighbour two along lies 1.1 distances away: one vertex nudged,
     /// or one patch moved whole, by 0.15 distances makes contact that only the patch's spread,
@@ -1127,42 +1200,14 @@ pub(crate) mod tests {
         let squeeze = 1.1 * distance / (2.0 * spacing);
         // As wide as it is deep once squeezed, so patches hold parts of rows.
         let columns = (rows as f32 / squeeze) as u32;
-        let n = columns * rows;
-        let adjacency = Adjacency::from_springs(n as usize, &grid_springs(columns, rows));
-        let base = |t: u32| -> Vec<Vec3> {
-            (0..n)
-                .map(|v| {
-                    let (j, i) = (v % columns, v / columns);
-                    let (x, z) = (j as f32 * spacing * squeeze, i as f32 * spacing);
-                    Vec3::new(x, -0.001 * t as f32, z)
-                })
-                .collect()
-        };
+        let adjacency =
+            Adjacency::from_springs((columns * rows) as usize, &grid_springs(columns, rows));
+        let base =
+            |t: u32| squeezed_grid(columns, rows, spacing, 1.1 * distance, -0.001 * t as f32);
         let mut culling = Culling::default();
         let mut t = 0;
-        let check = |culling: &mut Culling, positions: &[Vec3], expected: bool| {
-            let close = exact_pairs(positions, &adjacency, f64::from(distance));
-            assert_eq!(close.is_empty(), expected, "the test's own state");
-            let proof = culling.prove(positions, &adjacency, distance);
-            assert_eq!(proof == Proof::Clear, expected);
-            if !expected {
-                assert_eq!(proof, Proof::Local);
-                // Every vertex within the distance and the margin of an unjoined one, and no
-                // patch without one within a little more (the rounding's margin).
-                let wide = exact_pairs(positions, &adjacency, f64::from(distance * 1.26));
-                for &(a, b) in &wide {
-                    assert!(culling.is_suspect(a) && culling.is_suspect(b), "{a} {b}");
-                }
-                for &v in culling.suspects() {
-                    let patch = culling.patch_of[v as usize];
-                    assert!(
-                        wide.iter().any(|&(a, b)| [a, b]
-                            .iter()
-                            .any(|&w| culling.patch_of[w as usize] == patch)),
-                        "suspect patch {patch} has no close pair"
-                    );
-                }
-            }
+        let mut check = |culling: &mut Culling, positions: &[Vec3], expected: bool| {
+            check_proof(culling, positions, &adjacency, distance, expected);
         };
         for _ in 0..4 {
             t += 1;
@@ -1187,5 +1232,39 @@ pub(crate) mod tests {
             t += 1;
             check(&mut culling, &base(t), true);
         }
+    }
+
+    /// A patch that bends as it moves (enough to renew its references) slides into the patch
+    /// beside it in one step: the gaps its near pairs measured before carry over the renewal
+    /// (less its spread), and their drift, counted from where the patch was built, still
+    /// shows the contact.
+    #[test]
+    fn gaps_carry_over_renewals_to_the_contact() {
+        let (side, spacing, distance) = (32u32, 0.01f32, 0.005f32);
+        let adjacency = Adjacency::from_springs((side * side) as usize, &grid_springs(side, side));
+        let base = squeezed_grid(side, side, spacing, 2.0 * spacing, 0.0);
+        let mut culling = Culling::default();
+        check_proof(&mut culling, &base, &adjacency, distance, true);
+        let inner =
+            |v: u32| (4..side - 4).contains(&(v % side)) && (4..side - 4).contains(&(v / side));
+        let patch = (0..culling.patches.len() as u32)
+            .find(|&p| {
+                let members = &culling.members[culling.slots(p)];
+                members.len() == PATCH && members.iter().all(|&v| inner(v))
+            })
+            .expect("an inner patch");
+        // 3.3 distances along -x: its vertices 0.7 distances (and the bend's 0.5 up or down)
+        // from those of the patch beside it two along; half of it up and half down by half a
+        // distance, past a quarter of its slack (the diagonal's 2.83 distances less one).
+        let mut moved = base.clone();
+        for (k, &v) in culling.members[culling.slots(patch)].iter().enumerate() {
+            let up = if k < PATCH / 2 { 0.5 } else { -0.5 };
+            moved[v as usize] += Vec3::new(-3.3, up, 0.0) * distance;
+        }
+        check_proof(&mut culling, &moved, &adjacency, distance, false);
+        assert!(
+            culling.patches[patch as usize].renewed > 0.0,
+            "the patch renewed its references"
+        );
     }
 }
