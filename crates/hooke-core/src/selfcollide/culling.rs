@@ -1206,7 +1206,7 @@ pub(crate) mod tests {
             |t: u32| squeezed_grid(columns, rows, spacing, 1.1 * distance, -0.001 * t as f32);
         let mut culling = Culling::default();
         let mut t = 0;
-        let mut check = |culling: &mut Culling, positions: &[Vec3], expected: bool| {
+        let check = |culling: &mut Culling, positions: &[Vec3], expected: bool| {
             check_proof(culling, positions, &adjacency, distance, expected);
         };
         for _ in 0..4 {
