@@ -474,9 +474,7 @@ impl Resolver {
         // Keyed as a full pass keys them: the key bits follow the mesh's vertex count.
         let keys = GridKeys::new(n, config, k);
         let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
-        let sorted = self.binning.sort(vertices.len(), keys.bits, |first, out| {
-            keys.batch(&positions[first..], out)
-        });
+        let sorted = sorted_for_grid(&mut self.binning, positions, &keys);
         let culling = &self.culling;
         let pass = Pass {
             keys: &keys,
