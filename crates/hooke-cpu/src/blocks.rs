@@ -308,16 +308,11 @@ mod tests {
     use hooke_core::scene::{MeshSection, Scene};
     use hooke_testkit::{benchmark_scene, state_of};
 
-    use crate::{CpuOptions, CpuSolver, Method};
+    use crate::{CpuSolver, Method};
 
     /// A scatter solver that steps block by block, or one that never does.
     fn solver(scene: &Scene, threads: usize, blocks: bool) -> CpuSolver {
-        let options = CpuOptions {
-            method: Method::Scatter,
-            threads: Some(threads),
-            ..Default::default()
-        };
-        let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
+        let mut solver = CpuSolver::for_test(scene, Method::Scatter, threads);
         assert!(
             solver.blocks.is_some(),
             "{} vertices",

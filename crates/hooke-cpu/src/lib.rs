@@ -199,6 +199,22 @@ impl std::fmt::Debug for CpuSolver {
 }
 
 impl CpuSolver {
+    /// A solver of `method` on `threads` threads for the unit tests, which then switch its
+    /// step plans on or off.
+    #[cfg(test)]
+    pub(crate) fn for_test(
+        scene: &hooke_core::scene::Scene,
+        method: Method,
+        threads: usize,
+    ) -> Self {
+        let options = CpuOptions {
+            method,
+            threads: Some(threads),
+            ..Default::default()
+        };
+        Self::new(&scene.model, &scene.material, options).expect("solver")
+    }
+
     pub fn new(model: &Model, material: &Material, options: CpuOptions) -> Result<Self, CpuError> {
         let mut builder = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("hooke-cpu-{i}"));
         if let Some(threads) = options.threads {

@@ -260,17 +260,12 @@ mod tests {
     use hooke_testkit::{benchmark_scene, state_of};
 
     use super::*;
-    use crate::{CpuOptions, Method};
+    use crate::Method;
 
     /// A gather solver that sweeps wherever it can, even on a mesh below [`MIN_SLICES`], or
     /// one that never does.
     fn solver(scene: &Scene, threads: usize, sweeps: bool) -> CpuSolver {
-        let options = CpuOptions {
-            method: Method::Gather,
-            threads: Some(threads),
-            ..Default::default()
-        };
-        let mut solver = CpuSolver::new(&scene.model, &scene.material, options).expect("solver");
+        let mut solver = CpuSolver::for_test(scene, Method::Gather, threads);
         solver.sweep = match &solver.topology {
             Topology::Gather(table) if sweeps => {
                 Sweep::of(table, solver.numbering.slice_count(), threads)

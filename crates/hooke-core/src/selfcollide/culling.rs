@@ -373,7 +373,7 @@ impl Culling {
             .into_par_iter()
             .map(|p| {
                 let mut row = Vec::new();
-                for &v in &self.members[self.slots(p as u32)] {
+                for &v in self.members_of(p as u32) {
                     for &w in adjacency.neighbors_of(v) {
                         row.push(self.patch_of[w as usize]);
                         for &u in adjacency.neighbors_of(w) {
@@ -1225,7 +1225,7 @@ pub(crate) mod tests {
         for patch in [5, 20, 40] {
             t += 1;
             let mut moved = base(t);
-            for &v in &culling.members[culling.slots(patch)] {
+            for &v in culling.members_of(patch) {
                 moved[v as usize] -= nudge;
             }
             check(&mut culling, &moved, false);
@@ -1249,7 +1249,7 @@ pub(crate) mod tests {
             |v: u32| (4..side - 4).contains(&(v % side)) && (4..side - 4).contains(&(v / side));
         let patch = (0..culling.patches.len() as u32)
             .find(|&p| {
-                let members = &culling.members[culling.slots(p)];
+                let members = culling.members_of(p);
                 members.len() == PATCH && members.iter().all(|&v| inner(v))
             })
             .expect("an inner patch");
@@ -1257,7 +1257,7 @@ pub(crate) mod tests {
         // from those of the patch beside it two along; half of it up and half down by half a
         // distance, past a quarter of its slack (the diagonal's 2.83 distances less one).
         let mut moved = base.clone();
-        for (k, &v) in culling.members[culling.slots(patch)].iter().enumerate() {
+        for (k, &v) in culling.members_of(patch).iter().enumerate() {
             let up = if k < PATCH / 2 { 0.5 } else { -0.5 };
             moved[v as usize] += Vec3::new(-3.3, up, 0.0) * distance;
         }
