@@ -340,6 +340,11 @@ impl Culling {
             .collect();
         order.par_sort_unstable();
         self.members = order.into_iter().map(|(_, v)| v).collect();
+        // Which vertices make a patch is all that matters; by place, a grid's patch is rows of
+        // consecutive places, which the owner may copy a run at a time (`Points::gather_into`).
+        self.members
+            .par_chunks_mut(PATCH)
+            .for_each(|members| members.sort_unstable_by_key(|&v| points.place(v)));
         self.patch_of = vec![0; n];
         self.slot_of = vec![0; n];
         for (slot, &v) in self.members.iter().enumerate() {
@@ -522,15 +527,19 @@ impl Culling {
         if f64::from(pair.gap) - renewed - drift - spreads >= f64::from(check.suspect_at) {
             return (Found::default(), None);
         }
-        let current = |slot: usize| check.points.at(self.places[slot]);
+        let current = |patch: u32| self.current(check.points, patch);
         if pair.suspect {
             // In contact last step: the placed gap would most likely fail again.
             let closest = self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
             return (Found::at(closest, check), None);
         }
-        let placed = |slot: usize| {
-            point_of(&self.references[slot / PATCH], slot % PATCH)
-                + self.patches[slot / PATCH].centre
+        let placed = |patch: u32| {
+            let mut frame = self.references[patch as usize];
+            let centre = self.patches[patch as usize].centre.to_array();
+            for (axis, c) in frame.iter_mut().zip(centre) {
+                axis.iter_mut().for_each(|x| *x += c);
+            }
+            frame
         };
         let gap = self.closest_unjoined(check.adjacency, [p, q], placed, 0.0);
         if gap - a.spread - b.spread >= check.suspect_at {
@@ -593,7 +602,7 @@ impl Culling {
             (None, None) => {
                 let (p, q) = (na.first, nb.first);
                 if !self.near(p, q) {
-                    let current = |slot: usize| check.points.at(self.places[slot]);
+                    let current = |patch: u32| self.current(check.points, patch);
                     let closest =
                         self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
                     let pair = Found::at(closest, check);
@@ -628,6 +637,11 @@ impl Culling {
         self.near_patches[row].binary_search(&q).is_ok()
     }
 
+    /// Patch `p`'s points where `points` has them now.
+    fn current<P: Points + ?Sized>(&self, points: &P, p: u32) -> Frame {
+        gather(points, &self.places[self.slots(p)])
+    }
+
     /// Slots of patch `p` in `members`.
     fn slots(&self, p: u32) -> std::ops::Range<usize> {
         let first = p as usize * PATCH;
@@ -635,9 +649,9 @@ impl Culling {
     }
 
     /// The smallest distance between a vertex of patch `p` and one of patch `q` that no spring
-    /// joins (not a vertex and itself), with each vertex at `point(slot)`; or, as soon as a
-    /// pair closer than `enough` turns up, that pair's distance (a caller that only asks
-    /// whether some pair is that close needs no more).
+    /// joins (not a vertex and itself), with each patch's vertices at `frame(patch)`; or, as
+    /// soon as a pair closer than `enough` turns up, that pair's distance (a caller that only
+    /// asks whether some pair is that close needs no more).
     ///
     /// `p`'s vertices are taken nearest `q`'s box first, and the search stops at the first
     /// whose distance to the box is no less than the closest pair found: no later one can be
@@ -646,7 +660,7 @@ impl Culling {
         &self,
         adjacency: &Adjacency,
         [p, q]: [u32; 2],
-        point: impl Fn(usize) -> Vec3,
+        frame: impl Fn(u32) -> Frame,
         enough: f32,
     ) -> f32 {
         // Compiled for AVX2 where there is one: the rows below are 64 lanes wide.
@@ -654,27 +668,25 @@ impl Culling {
             #[inline(always)]
             || {
                 // `q`'s points by axis, unused slots far away, so each row below is a plain
-                // loop.
-                let mut others = [[f32::INFINITY; PATCH]; 3];
-                let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-                for (k, slot) in self.slots(q).enumerate() {
-                    let x = point(slot);
-                    (others[0][k], others[1][k], others[2][k]) = (x.x, x.y, x.z);
-                    (low, high) = (low.min(x), high.max(x));
+                // loop (a frame's unused slots repeat its first point: its box is the same).
+                let mut others = frame(q);
+                let (low, high) = corners(&others);
+                let mine = if p == q { others } else { frame(p) };
+                for axis in &mut others {
+                    axis[self.slots(q).len()..].fill(f32::INFINITY);
                 }
-                // `p`'s points, and an order of them by squared distance to the box: the
-                // distance's bits above the point's index, integers that sort with plain
-                // comparisons and 8-byte moves (a squared length is never negative, not even
-                // -0, so its bits order as it does). On the stack: this runs thousands of
-                // times a step in contact.
+                // An order of `p`'s points by squared distance to the box: the distance's
+                // bits above the point's index, integers that sort with plain comparisons and
+                // 8-byte moves (a squared length is never negative, not even -0, so its bits
+                // order as it does). On the stack: this runs thousands of times a step in
+                // contact.
                 let slots = self.slots(p);
                 let first = slots.start;
-                let mut points = [Vec3::ZERO; PATCH];
                 let mut order = [0u64; PATCH];
                 let order = &mut order[..slots.len()];
-                for ((k, x), key) in points.iter_mut().enumerate().zip(order.iter_mut()) {
-                    *x = point(first + k);
-                    let outside = (low - *x).max(*x - high).max(Vec3::ZERO);
+                for (k, key) in order.iter_mut().enumerate() {
+                    let x = point_of(&mine, k);
+                    let outside = (low - x).max(x - high).max(Vec3::ZERO);
                     *key = (u64::from(outside.length_squared().to_bits()) << 32) | k as u64;
                 }
                 order.sort_unstable();
@@ -685,7 +697,7 @@ impl Culling {
                     if to_box >= closest || closest < enough {
                         break;
                     }
-                    let x = points[k];
+                    let x = point_of(&mine, k);
                     let mut squared = [0.0f32; PATCH];
                     for (j, s) in squared.iter_mut().enumerate() {
                         let d = [others[0][j] - x.x, others[1][j] - x.y, others[2][j] - x.z];
@@ -716,17 +728,42 @@ fn measure_patch(
     positions: &Frame,
     distance: f32,
 ) -> Option<f32> {
+    // One pass per axis: the displacements, both boxes, and whether all is finite.
     let mut moved: Frame = [[0.0; PATCH]; 3];
-    for ((moved, x), reference) in moved.iter_mut().zip(positions).zip(&*references) {
-        for ((m, x), r) in moved.iter_mut().zip(x).zip(reference) {
-            *m = x - r;
+    let (mut low, mut high, mut moved_low, mut moved_high) =
+        ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
+    let mut poison = Vec4::ZERO;
+    for a in 0..3 {
+        let mut extremes = [
+            Vec4::INFINITY,
+            Vec4::NEG_INFINITY,
+            Vec4::INFINITY,
+            Vec4::NEG_INFINITY,
+        ];
+        for (m, (x, r)) in moved[a]
+            .chunks_exact_mut(4)
+            .zip(quads(&positions[a]).zip(quads(&references[a])))
+        {
+            let d = x - r;
+            d.write_to_slice(m);
+            poison += x * 0.0;
+            extremes = [
+                extremes[0].min(x),
+                extremes[1].max(x),
+                extremes[2].min(d),
+                extremes[3].max(d),
+            ];
         }
+        low[a] = extremes[0].min_element();
+        high[a] = extremes[1].max_element();
+        moved_low[a] = extremes[2].min_element();
+        moved_high[a] = extremes[3].max_element();
     }
-    if !finite(positions) {
+    if poison.element_sum() != 0.0 {
         return None;
     }
-    let (low, high) = corners(positions);
-    let (moved_low, moved_high) = corners(&moved);
+    let (low, high) = (Vec3::from_array(low), Vec3::from_array(high));
+    let (moved_low, moved_high) = (Vec3::from_array(moved_low), Vec3::from_array(moved_high));
     let centre = 0.5 * (moved_low + moved_high);
     let spread = farthest_squared(&moved, centre).sqrt();
     let scale = low.abs().max(high.abs()).max_element();
@@ -783,12 +820,14 @@ fn scale_of(frame: &Frame) -> f32 {
 /// The points at `places` (a patch's; at most `PATCH`), the rest of the frame repeating the
 /// first.
 fn gather<P: Points + ?Sized>(points: &P, places: &[u32]) -> Frame {
-    let [mut x, mut y, mut z] = [[0.0; PATCH]; 3];
-    for (k, ((x, y), z)) in x.iter_mut().zip(&mut y).zip(&mut z).enumerate() {
-        let p = points.at(places.get(k).copied().unwrap_or(places[0]));
-        (*x, *y, *z) = (p.x, p.y, p.z);
+    let mut frame = [[0.0; PATCH]; 3];
+    let [x, y, z] = &mut frame;
+    points.gather_into(places, [x, y, z]);
+    for axis in &mut frame {
+        let first = axis[0];
+        axis[places.len()..].fill(first);
     }
-    [x, y, z]
+    frame
 }
 
 /// Slot `k` of `frame`.
