@@ -139,7 +139,10 @@ pub struct Culling {
     references: Vec<Frame>,
     /// The patch and slot within it of each vertex.
     patch_of: Vec<u32>,
-    slot_of: Vec<u8>,
+    /// Each slot of `members`' neighbours, as slots of `members` (rows of a CSR table): a
+    /// patch's rows lie together, where the adjacency's are spread over the mesh.
+    joined_offsets: Vec<u32>,
+    joined: Vec<u32>,
     patches: Vec<Patch>,
     near: Vec<NearPair>,
     /// Each patch's near patches, sorted (rows of a CSR table).
@@ -182,7 +185,6 @@ impl Found {
 /// What one step's check needs besides the culling.
 struct Check<'a, P: ?Sized> {
     points: &'a P,
-    adjacency: &'a Adjacency,
     /// The distance plus rounding's margin: a pair at least this far apart is clear.
     clear_at: f32,
     /// `clear_at` plus [`MARGIN`]: a pair at least this far apart leaves its patches cleared.
@@ -301,7 +303,6 @@ impl Culling {
         (self.margin, self.clear_at) = (MARGIN * distance, clear_at);
         let check = Check {
             points,
-            adjacency,
             clear_at,
             suspect_at: clear_at + self.margin,
         };
@@ -345,12 +346,23 @@ impl Culling {
         self.members
             .par_chunks_mut(PATCH)
             .for_each(|members| members.sort_unstable_by_key(|&v| points.place(v)));
-        self.patch_of = vec![0; n];
-        self.slot_of = vec![0; n];
+        let mut slot_of = vec![0u32; n];
         for (slot, &v) in self.members.iter().enumerate() {
-            self.patch_of[v as usize] = (slot / PATCH) as u32;
-            self.slot_of[v as usize] = (slot % PATCH) as u8;
+            slot_of[v as usize] = slot as u32;
         }
+        self.patch_of = slot_of.iter().map(|&slot| slot / PATCH as u32).collect();
+        self.joined_offsets = std::iter::once(0)
+            .chain(self.members.iter().scan(0, |end, &v| {
+                *end += adjacency.valence(v as usize);
+                Some(*end)
+            }))
+            .collect();
+        self.joined = self
+            .members
+            .iter()
+            .flat_map(|&v| adjacency.neighbors_of(v))
+            .map(|&w| slot_of[w as usize])
+            .collect();
         self.places = self.members.iter().map(|&v| points.place(v)).collect();
         self.references = self
             .places
@@ -530,7 +542,7 @@ impl Culling {
         let current = |patch: u32| self.current(check.points, patch);
         if pair.suspect {
             // In contact last step: the placed gap would most likely fail again.
-            let closest = self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
+            let closest = self.closest_unjoined([p, q], current, check.clear_at);
             return (Found::at(closest, check), None);
         }
         let placed = |patch: u32| {
@@ -541,7 +553,7 @@ impl Culling {
             }
             frame
         };
-        let gap = self.closest_unjoined(check.adjacency, [p, q], placed, 0.0);
+        let gap = self.closest_unjoined([p, q], placed, 0.0);
         if gap - a.spread - b.spread >= check.suspect_at {
             return (Found::default(), Some(gap));
         }
@@ -550,7 +562,7 @@ impl Culling {
         if still(a) && still(b) {
             return (Found::at(gap, check), Some(gap));
         }
-        let closest = self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
+        let closest = self.closest_unjoined([p, q], current, check.clear_at);
         (Found::at(closest, check), Some(gap))
     }
 
@@ -603,8 +615,7 @@ impl Culling {
                 let (p, q) = (na.first, nb.first);
                 if !self.near(p, q) {
                     let current = |patch: u32| self.current(check.points, patch);
-                    let closest =
-                        self.closest_unjoined(check.adjacency, [p, q], current, check.clear_at);
+                    let closest = self.closest_unjoined([p, q], current, check.clear_at);
                     let pair = Found::at(closest, check);
                     if pair.suspect {
                         found.push(([p, q], pair));
@@ -642,6 +653,11 @@ impl Culling {
         gather(points, &self.places[self.slots(p)])
     }
 
+    /// The slots of `members` joined to slot `slot`'s vertex by a spring.
+    fn joined_of(&self, slot: usize) -> &[u32] {
+        &self.joined[self.joined_offsets[slot] as usize..self.joined_offsets[slot + 1] as usize]
+    }
+
     /// Slots of patch `p` in `members`.
     fn slots(&self, p: u32) -> std::ops::Range<usize> {
         let first = p as usize * PATCH;
@@ -656,13 +672,7 @@ impl Culling {
     /// `p`'s vertices are taken nearest `q`'s box first, and the search stops at the first
     /// whose distance to the box is no less than the closest pair found: no later one can be
     /// closer. Patches side by side on a sheet then measure a row or two of `p`, not all 64.
-    fn closest_unjoined(
-        &self,
-        adjacency: &Adjacency,
-        [p, q]: [u32; 2],
-        frame: impl Fn(u32) -> Frame,
-        enough: f32,
-    ) -> f32 {
+    fn closest_unjoined(&self, [p, q]: [u32; 2], frame: impl Fn(u32) -> Frame, enough: f32) -> f32 {
         // Compiled for AVX2 where there is one: the rows below are 64 lanes wide.
         wide(
             #[inline(always)]
@@ -697,22 +707,29 @@ impl Culling {
                     if to_box >= closest || closest < enough {
                         break;
                     }
-                    let x = point_of(&mine, k);
-                    let mut squared = [0.0f32; PATCH];
-                    for (j, s) in squared.iter_mut().enumerate() {
-                        let d = [others[0][j] - x.x, others[1][j] - x.y, others[2][j] - x.z];
-                        *s = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                    }
-                    let v = self.members[first + k];
-                    if p == q {
-                        squared[k] = f32::INFINITY;
-                    }
-                    for &w in adjacency.neighbors_of(v) {
-                        if self.patch_of[w as usize] == q {
-                            squared[self.slot_of[w as usize] as usize] = f32::INFINITY;
+                    // The slots of `q` that the vertex is itself or joined to, a bit each.
+                    let mut joined = if p == q { 1u64 << k } else { 0 };
+                    for &slot in self.joined_of(first + k) {
+                        if slot as usize / PATCH == q as usize {
+                            joined |= 1 << (slot as usize % PATCH);
                         }
                     }
-                    closest = squared.iter().fold(closest, |a, &b| smaller(a, b));
+                    // The smallest over 8 lanes, each folding every 8th slot: 8 slots at a
+                    // time in one vector register, where a fold over all 64 in order ran a
+                    // slot at a time.
+                    let x = point_of(&mine, k);
+                    let mut lanes = [f32::INFINITY; 8];
+                    for c in 0..PATCH / 8 {
+                        let bits = (joined >> (8 * c)) as u32;
+                        for (l, lane) in lanes.iter_mut().enumerate() {
+                            let j = 8 * c + l;
+                            let d = [others[0][j] - x.x, others[1][j] - x.y, others[2][j] - x.z];
+                            let squared = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                            let masked = (bits >> l) & 1 != 0;
+                            *lane = smaller(*lane, if masked { f32::INFINITY } else { squared });
+                        }
+                    }
+                    closest = lanes.iter().fold(closest, |a, &b| smaller(a, b));
                 }
                 closest.sqrt()
             },
@@ -902,7 +919,7 @@ pub(crate) mod tests {
 
     use super::*;
     use crate::mesh::{GridPlane, grid};
-    use crate::selfcollide::{Resolver, SelfCollision, apply, exact_pairs, resolve};
+    use crate::selfcollide::{Resolver, SelfCollision, apply, exact_pairs, joined, resolve};
 
     /// The springs of the generator's grid, `columns` vertices a row (the scripts place the
     /// vertices themselves).
@@ -1277,6 +1294,48 @@ pub(crate) mod tests {
     /// beside it in one step: the gaps its near pairs measured before carry over the renewal
     /// (less its spread), and their drift, counted from where the patch was built, still
     /// shows the contact.
+    /// Scattered points, a short last patch, and springs joining each point to its nearest
+    /// other (the pairs closest_unjoined must pass over) and to a few at random: every pair
+    /// of patches gives the smallest distance of every unjoined pair, bit for bit.
+    #[test]
+    fn closest_unjoined_is_the_smallest_distance_of_any_unjoined_pair() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let n = 4 * PATCH + 44;
+        let points: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        let mut ends = Vec::new();
+        for (a, &x) in points.iter().enumerate() {
+            let nearest = (0..n)
+                .filter(|&b| b != a)
+                .min_by(|&b, &c| x.distance(points[b]).total_cmp(&x.distance(points[c])))
+                .unwrap();
+            ends.push([a as u32, nearest as u32]);
+            ends.push([a as u32, rng.random_range(0..n as u32)]);
+        }
+        ends.retain(|[a, b]| a != b);
+        let adjacency = Adjacency::from_springs(n, &ends);
+        let mut culling = Culling::default();
+        culling.prove(&points[..], &adjacency, 0.01);
+        let count = n.div_ceil(PATCH) as u32;
+        for p in 0..count {
+            for q in 0..count {
+                let found =
+                    culling.closest_unjoined([p, q], |r| culling.current(&points[..], r), 0.0);
+                let mut expected = f32::INFINITY;
+                for &v in culling.members_of(p) {
+                    for &w in culling.members_of(q) {
+                        if v != w && !joined(&adjacency, v, w) {
+                            let d = points[w as usize] - points[v as usize];
+                            expected = expected.min(d.x * d.x + d.y * d.y + d.z * d.z);
+                        }
+                    }
+                }
+                assert_eq!(found, expected.sqrt(), "patches {p} and {q}");
+            }
+        }
+    }
+
     #[test]
     fn gaps_carry_over_renewals_to_the_contact() {
         let (side, spacing, distance) = (32u32, 0.01f32, 0.005f32);
