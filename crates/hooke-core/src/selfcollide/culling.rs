@@ -39,8 +39,8 @@
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::Points;
 use super::wide::wide;
+use super::{Points, prefetch};
 use crate::Adjacency;
 
 /// Most vertices in one patch (an 8 x 8 block of a grid).
@@ -677,6 +677,15 @@ impl Culling {
         wide(
             #[inline(always)]
             || {
+                // `p`'s joined slots are read a row at a time in no order the processor can
+                // foresee: they are asked for first, to arrive while the frames are built and
+                // sorted.
+                let rows = self.slots(p);
+                let offsets = &self.joined_offsets[rows.start..=rows.end];
+                let joined = offsets[0] as usize..offsets[offsets.len() - 1] as usize;
+                for line in offsets.chunks(16).chain(self.joined[joined].chunks(16)) {
+                    prefetch(&line[0]);
+                }
                 // `q`'s points by axis, unused slots far away, so each row below is a plain
                 // loop (a frame's unused slots repeat its first point: its box is the same).
                 let mut others = frame(q);
