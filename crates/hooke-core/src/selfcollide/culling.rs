@@ -275,11 +275,16 @@ impl Culling {
             if !self.suspect_patches[p as usize] {
                 self.suspect_patches[p as usize] = true;
                 self.widened += 1;
-                self.suspect_list.push(p);
-                self.suspects
-                    .extend_from_slice(&self.members[self.slots(p)]);
+                self.list_suspect(p);
             }
         }
+    }
+
+    /// Lists suspect patch `p` and its vertices.
+    fn list_suspect(&mut self, p: u32) {
+        self.suspect_list.push(p);
+        self.suspects
+            .extend_from_slice(&self.members[self.slots(p)]);
     }
 
     fn check<P: Points + ?Sized>(
@@ -319,10 +324,10 @@ impl Culling {
         }
         self.suspects.clear();
         self.suspect_list.clear();
-        for (p, _) in self.suspect_patches.iter().enumerate().filter(|(_, s)| **s) {
-            self.suspect_list.push(p as u32);
-            self.suspects
-                .extend_from_slice(&self.members[self.slots(p as u32)]);
+        for p in 0..self.patches.len() as u32 {
+            if self.suspect_patches[p as usize] {
+                self.list_suspect(p);
+            }
         }
         Proof::Local
     }
@@ -680,8 +685,9 @@ impl Culling {
                 // `p`'s joined slots are read a row at a time in no order the processor can
                 // foresee: they are asked for first, to arrive while the frames are built and
                 // sorted.
-                let rows = self.slots(p);
-                let offsets = &self.joined_offsets[rows.start..=rows.end];
+                let slots = self.slots(p);
+                let first = slots.start;
+                let offsets = &self.joined_offsets[first..=slots.end];
                 let joined = offsets[0] as usize..offsets[offsets.len() - 1] as usize;
                 for line in offsets.chunks(16).chain(self.joined[joined].chunks(16)) {
                     prefetch(&line[0]);
@@ -699,8 +705,6 @@ impl Culling {
                 // 8-byte moves (a squared length is never negative, not even -0, so its bits
                 // order as it does). On the stack: this runs thousands of times a step in
                 // contact.
-                let slots = self.slots(p);
-                let first = slots.start;
                 let mut order = [0u64; PATCH];
                 let order = &mut order[..slots.len()];
                 for (k, key) in order.iter_mut().enumerate() {

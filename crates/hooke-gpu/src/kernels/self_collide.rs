@@ -113,47 +113,44 @@ impl SelfCollidePass {
         )?;
         // The pass works on the buffer the step writes: positions[1 - current].
         let target = |current: usize| &state.positions[1 - current];
-        let key_groups = uniforms
-            .iter()
-            .map(|u| {
-                [0, 1].map(|current| {
-                    bind_group(
-                        context,
-                        "cell keys",
-                        &cell_keys.get_bind_group_layout(0),
-                        &[
-                            (0, u.as_entire_binding()),
-                            (2, sort.pairs().as_entire_binding()),
-                            (7, corrections.as_entire_binding()),
-                            (8, target(current).as_entire_binding()),
-                            (9, state.deltas.as_entire_binding()),
-                            (10, sort.histogram().as_entire_binding()),
-                        ],
-                    )
-                })
-            })
-            .collect();
-        let correct_groups = uniforms
-            .iter()
-            .map(|u| {
-                [0, 1].map(|current| {
-                    bind_group(
-                        context,
-                        "self-collision correct",
-                        &correct.get_bind_group_layout(0),
-                        &[
-                            (0, u.as_entire_binding()),
-                            (1, target(current).as_entire_binding()),
-                            (2, sort.sorted_pairs().as_entire_binding()),
-                            (4, gpu_model.scales.as_entire_binding()),
-                            (5, offsets.as_entire_binding()),
-                            (6, neighbors.as_entire_binding()),
-                            (7, corrections.as_entire_binding()),
-                        ],
-                    )
-                })
-            })
-            .collect();
+        // A bind group per grid (its uniforms) and per current position buffer.
+        let per_grid = |make: &dyn Fn(&wgpu::Buffer, usize) -> wgpu::BindGroup| {
+            uniforms
+                .iter()
+                .map(|u| [0, 1].map(|current| make(u, current)))
+                .collect::<Vec<_>>()
+        };
+        let key_groups = per_grid(&|u, current| {
+            bind_group(
+                context,
+                "cell keys",
+                &cell_keys.get_bind_group_layout(0),
+                &[
+                    (0, u.as_entire_binding()),
+                    (2, sort.pairs().as_entire_binding()),
+                    (7, corrections.as_entire_binding()),
+                    (8, target(current).as_entire_binding()),
+                    (9, state.deltas.as_entire_binding()),
+                    (10, sort.histogram().as_entire_binding()),
+                ],
+            )
+        });
+        let correct_groups = per_grid(&|u, current| {
+            bind_group(
+                context,
+                "self-collision correct",
+                &correct.get_bind_group_layout(0),
+                &[
+                    (0, u.as_entire_binding()),
+                    (1, target(current).as_entire_binding()),
+                    (2, sort.sorted_pairs().as_entire_binding()),
+                    (4, gpu_model.scales.as_entire_binding()),
+                    (5, offsets.as_entire_binding()),
+                    (6, neighbors.as_entire_binding()),
+                    (7, corrections.as_entire_binding()),
+                ],
+            )
+        });
         let apply_groups = [0, 1].map(|current| {
             bind_group(
                 context,
