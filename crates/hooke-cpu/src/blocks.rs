@@ -16,6 +16,21 @@
 //! slices, and in the first pass reads only rows its own band has written: the tasks touch
 //! disjoint memory. Every vertex sums the same forces in the same order as in the plain step,
 //! so the states are bit-identical (tested).
+//!
+//! **Several steps per sweep.** Where nothing acts between one step's forces and the next
+//! (see `sweep`), [`Blocks::sweep`] advances the blocks up to [`DEPTH`] steps while they are
+//! in the cache, as the gather's sweep does with slices. A block's rows reach at most `r`
+//! blocks past it (its springs' ends), so the slices of block `k` sum rows of blocks
+//! `k - r..=k`. Step `j` of a sweep (1-based) computes its rows from the positions of step
+//! `j - 1` and integrates from them into the buffer of step `j - 2`, so within a band
+//! `[s, e)` it covers blocks `[s + (j-1) r, e - (j-1) r)` and trails step `j - 1` by `r`
+//! blocks: the positions its rows read are then final, and no later step of `j - 1` reads
+//! what it overwrites (rows or positions). A slice there whose sums reach rows before
+//! `s + (j-1) r` waits. When every band is done, one task per band boundary `b` runs steps
+//! `1..=DEPTH` over the strip `[b - (j-1) r, b + (j-1) r)`, its rows and slices, and the
+//! slices of `[b + (j-1) r, b + j r)` that waited; boundaries lie at least `4 DEPTH r` blocks
+//! apart, so those tasks touch disjoint memory. Every vertex sums the same forces in the same
+//! order: the states are bit-identical (tested).
 
 use std::ops::Range;
 
@@ -26,6 +41,7 @@ use crate::kernels::{
     SpringForces, SpringTable, VertexChunk,
 };
 use crate::layout::LANES;
+use crate::sweep::{Buffers, DEPTH, Finite, both};
 use crate::tables::SPRING_BLOCK;
 use crate::view::{Floats, Points, Positions};
 
@@ -47,6 +63,17 @@ pub(crate) struct Blocks {
     /// Per slice, the first block whose rows hold a spring it sums.
     first_block: Vec<u32>,
     /// Per band, its first block; one more entry ends the last band.
+    bands: Vec<usize>,
+    /// How several steps sweep the blocks, when they may (see [`Blocks::sweep`]).
+    sweep: Option<BlockSweep>,
+}
+
+/// Several steps per sweep over the blocks: the furthest block, past its own, that a
+/// block's rows reach (so also the furthest before its own that a slice's sums reach), and
+/// the bands of the sweep, first block each, one more entry ending the last.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct BlockSweep {
+    reach: usize,
     bands: Vec<usize>,
 }
 
@@ -98,11 +125,18 @@ impl Blocks {
             })
             .collect();
         let bands = (0..=band_count).map(|b| b * blocks / band_count).collect();
+        let sweep = BlockSweep::plan(springs, &rows, spring_count, threads);
         Some(Self {
             rows,
             first_block,
             bands,
+            sweep,
         })
+    }
+
+    /// Whether several steps may run in one sweep over the blocks.
+    pub(crate) fn sweeps(&self) -> bool {
+        self.sweep.is_some()
     }
 
     fn band_count(&self) -> usize {
@@ -148,7 +182,8 @@ impl Blocks {
                 // SAFETY: block k's rows belong to this band alone, and no task reads them
                 // before this one has written them (the module docs).
                 let rows = unsafe { forces.rows(self.rows[k]..self.rows[k + 1]) };
-                kernels::spring_forces(isa, springs, current, points, self.rows[k], rows);
+                let positions = Positions::new(current, points);
+                kernels::spring_forces(isa, springs, positions, self.rows[k], rows);
                 let ready = |s: &usize| self.first_block[*s] as usize >= band.start;
                 finite &=
                     runs(self.slices(k..k + 1), ready).fold(true, |all, r| integrate(r) & all);
@@ -162,6 +197,128 @@ impl Blocks {
             runs(self.slices(band.clone()), waiting).fold(true, |all, r| integrate(r) & all)
         });
         first & second.reduce(|| true, |a, b| a && b)
+    }
+}
+
+impl Blocks {
+    /// `depth` steps (2..=[`DEPTH`]) in one sweep over the blocks (see the module docs):
+    /// the bands, then the strips at their boundaries. Per step, whether every new position
+    /// was finite.
+    pub(crate) fn sweep(
+        &self,
+        depth: usize,
+        isa: InstructionSet,
+        (springs, incidence): (&SpringTable, &IncidenceTable),
+        spring_forces: &mut SpringForces,
+        integrator: &Integrator,
+        buffers: &Buffers,
+    ) -> Finite {
+        let plan = self.sweep.as_ref().expect("a sweep plan");
+        let (r, blocks) = (plan.reach, self.rows.len() - 1);
+        let forces = Forces::new(spring_forces);
+        // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
+        let view = unsafe { forces.view() };
+        let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
+            let current = Positions {
+                points: None,
+                ..positions
+            };
+            kernels::accumulate_and_integrate(
+                isa, incidence, view, integrator, current, None, chunk,
+            )
+        };
+        // Step j: the rows of blocks `rows`, from the positions of step j - 1; then the slices
+        // of blocks `slices` that `keep` keeps.
+        let unit =
+            |j: usize, rows: Range<usize>, slices: Range<usize>, keep: &dyn Fn(usize) -> bool| {
+                if !rows.is_empty() {
+                    let (first, end) = (self.rows[rows.start], self.rows[rows.end]);
+                    // SAFETY: the schedule of the module docs: these rows and the positions
+                    // they read are this task's alone while it runs.
+                    unsafe {
+                        let out = forces.rows(first..end);
+                        kernels::spring_forces(isa, springs, buffers.positions(j - 1), first, out);
+                    }
+                }
+                runs(self.slices(slices), |s| keep(*s)).fold(true, |all, run| {
+                    // SAFETY: as above.
+                    let finite = unsafe { buffers.step(j, run, &kernel) };
+                    finite & all
+                })
+            };
+        let bands = (0..plan.bands.len() - 1).into_par_iter().map(|b| {
+            let (start, end) = (plan.bands[b], plan.bands[b + 1]);
+            let mut finite: Finite = [true; DEPTH + 1];
+            // Where step j has got to; it covers blocks [start + (j-1) r, end - (j-1) r).
+            let mut reached: [usize; DEPTH + 1] =
+                std::array::from_fn(|j| start + j.saturating_sub(1) * r);
+            for at in start + 1..=end {
+                for j in 1..=depth {
+                    // One reach behind step j - 1, which also keeps it off the band's end.
+                    let limit = at.saturating_sub((j - 1) * r);
+                    if limit > reached[j] {
+                        // Slices summing rows before this step's first wait for the strip.
+                        let first = start + (j - 1) * r;
+                        let keep = |s: usize| self.first_block[s] as usize >= first;
+                        finite[j] &= unit(j, reached[j]..limit, reached[j]..limit, &keep);
+                        reached[j] = limit;
+                    }
+                }
+            }
+            finite
+        });
+        let inner = bands.reduce(|| [true; DEPTH + 1], both);
+        let strips = plan.bands.par_iter().map(|&b| {
+            let mut finite: Finite = [true; DEPTH + 1];
+            for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(1) {
+                let low = b.saturating_sub((j - 1) * r);
+                let high = (b + (j - 1) * r).min(blocks);
+                // Past `high`, the slices the band after left waiting.
+                let waiting = self.slices(high..high).start;
+                let keep = |s: usize| s < waiting || (self.first_block[s] as usize) < high;
+                let until = (b + j * r).min(blocks);
+                *finite &= unit(j, low..high, low..until, &keep);
+            }
+            finite
+        });
+        both(inner, strips.reduce(|| [true; DEPTH + 1], both))
+    }
+}
+
+impl BlockSweep {
+    /// The sweep over `rows` (each block's first spring row, and the end of the last) with
+    /// `threads` threads, or `None` where it cannot run: a spring with an end in a block
+    /// before its row's, or rows reaching too far for bands at least `4 DEPTH` reaches wide.
+    fn plan(
+        springs: &SpringTable,
+        rows: &[usize],
+        spring_count: usize,
+        threads: usize,
+    ) -> Option<Self> {
+        let blocks = rows.len() - 1;
+        let block_of = |v: u32| v as usize / SPRING_BLOCK as usize;
+        let reaches: Option<Vec<usize>> = (0..blocks)
+            .into_par_iter()
+            .map(|k| {
+                let mut reach = 0;
+                for row in rows[k]..rows[k + 1] {
+                    let ends = springs.a.row(row).into_iter().zip(springs.b.row(row));
+                    for (_, (a, b)) in (row * LANES..spring_count).zip(ends) {
+                        if block_of(a.min(b)) < k {
+                            return None;
+                        }
+                        reach = reach.max(block_of(a.max(b)) - k);
+                    }
+                }
+                Some(reach)
+            })
+            .collect();
+        let reach = reaches?.into_iter().max().unwrap_or(0);
+        let band_count = threads.min(blocks / (4 * DEPTH * reach.max(1)));
+        (band_count > 0).then(|| Self {
+            reach,
+            bands: (0..=band_count).map(|b| b * blocks / band_count).collect(),
+        })
     }
 }
 
@@ -310,14 +467,16 @@ mod tests {
 
     use crate::{CpuSolver, Method};
 
-    /// A scatter solver that steps block by block, or one that never does.
-    fn solver(scene: &Scene, threads: usize, blocks: bool) -> CpuSolver {
+    /// A scatter solver that steps block by block, or one that never does; one that sweeps
+    /// several steps at a time where it can, or one that never does.
+    fn solver(scene: &Scene, threads: usize, blocks: bool, sweeps: bool) -> CpuSolver {
         let mut solver = CpuSolver::for_test(scene, Method::Scatter, threads);
-        assert!(
-            solver.blocks.is_some(),
-            "{} vertices",
-            scene.model.vertex_count()
-        );
+        let plan = solver.blocks.as_mut().unwrap_or_else(|| {
+            panic!("{} vertices", scene.model.vertex_count());
+        });
+        if !sweeps {
+            plan.sweep = None;
+        }
         if !blocks {
             solver.blocks = None;
         }
@@ -334,8 +493,8 @@ mod tests {
         for (mesh, vertices) in meshes {
             let scene = benchmark_scene(mesh, vertices);
             for threads in [1, 2, 3] {
-                let mut plain = solver(&scene, threads, false);
-                let mut blocked = solver(&scene, threads, true);
+                let mut plain = solver(&scene, threads, false, false);
+                let mut blocked = solver(&scene, threads, true, false);
                 let plan = blocked.blocks.clone().expect("planned");
                 // Every band but the first has slices that wait for the band before it.
                 assert!(
@@ -360,6 +519,39 @@ mod tests {
                         a == b,
                         "{vertices} vertices, {threads} threads, after {} steps",
                         blocked.steps_taken()
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sweeps_over_blocks_give_the_states_of_plain_steps() {
+        let meshes = [
+            (MeshSection::unit_grid(384, 384), 384 * 384),
+            (MeshSection::unit_irregular(140_000, 11), 140_000),
+        ];
+        for (mesh, vertices) in meshes {
+            let scene = benchmark_scene(mesh, vertices);
+            for threads in [1, 2, 3] {
+                let mut plain = solver(&scene, threads, false, false);
+                let mut swept = solver(&scene, threads, true, true);
+                assert!(swept.can_sweep(), "{vertices} vertices, {threads} threads");
+                let plan = swept.blocks.clone().and_then(|b| b.sweep).expect("planned");
+                // Waiting slices and strips at band boundaries inside the mesh are tested too.
+                assert!(plan.reach >= 1, "{vertices} vertices: {plan:?}");
+                if vertices == 384 * 384 {
+                    assert_eq!(plan.bands.len() - 1, threads.min(2), "{plan:?}");
+                }
+                // Sweeps of every depth, odd ones included, and a lone step between them.
+                for steps in [4, 1, 2, 3, 7, 9] {
+                    plain.step(steps).expect("stable");
+                    swept.step(steps).expect("stable");
+                    let (a, b) = (state_of(&plain), state_of(&swept));
+                    assert!(
+                        a == b,
+                        "{vertices} vertices, {threads} threads, after {} steps",
+                        swept.steps_taken()
                     );
                 }
             }

@@ -939,14 +939,12 @@ fn spring_row_force<S: Simd, const POINTS: bool>(
 fn spring_forces_with<S: Simd>(
     simd: S,
     springs: &SpringTable,
-    current: &Soa,
-    points: Option<&[Point]>,
+    positions: Positions<'_>,
     first_row: usize,
     out: ForceRows<'_>,
 ) {
-    let positions = Positions::new(current, points);
     // Two copies of the loop, one that never looks at points: the structured meshes' rows.
-    match points {
+    match positions.points {
         None => spring_rows::<S, false>(simd, springs, positions, first_row, out),
         Some(_) => spring_rows::<S, true>(simd, springs, positions, first_row, out),
     }
@@ -1011,12 +1009,11 @@ fn spring_rows<S: Simd, const POINTS: bool>(
 
 dispatch! {
     /// Scatter (ECA) force pass: each spring's force on its `a` end, computed once, for rows
-    /// `first_row..first_row + out.len()`. Rows gathered lane by lane read `points` (the
-    /// positions, one point per vertex) when given.
+    /// `first_row..first_row + out.len()`. Rows gathered lane by lane read the positions'
+    /// points (one per vertex) when they have them.
     pub fn spring_forces(
         springs: &SpringTable,
-        current: &Soa,
-        points: Option<&[Point]>,
+        positions: Positions<'_>,
         first_row: usize,
         out: ForceRows<'_>,
     ) -> () => spring_forces_with

@@ -797,7 +797,7 @@ fn compute_spring_forces(
     let rows = springs.a.len();
     let pass = |task: usize, out: ForceRows<'_>| {
         let first = task * SPRING_ROWS_PER_TASK;
-        kernels::spring_forces(isa, springs, current, points, first, out);
+        kernels::spring_forces(isa, springs, Positions::new(current, points), first, out);
     };
     match spring_forces {
         SpringForces::Axes(axes) => {

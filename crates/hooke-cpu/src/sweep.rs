@@ -23,14 +23,16 @@
 //!
 //! Every vertex does the arithmetic of a single step on the same inputs, so the states are
 //! bit-identical (tested). Only steps where nothing acts between the spring forces and the next
-//! step may sweep: gather, no tearing, no per-step external forces (wind, drag, bending
-//! damping), no colliders, handles or self-collision. Any other step runs alone.
+//! step may sweep: no tearing, no per-step external forces (wind, drag, bending damping), no
+//! colliders, handles or self-collision. Any other step runs alone. Scatter sweeps its blocks
+//! of springs through the same [`Buffers`] (see `blocks`).
 
 use std::ops::Range;
 
 use hooke_core::SimError;
 use rayon::prelude::*;
 
+use crate::blocks::Blocks;
 use crate::kernels::{self, Block, GatherTable, Point, VertexChunk};
 use crate::layout::LANES;
 use crate::view::Positions;
@@ -60,7 +62,7 @@ pub(crate) struct Sweep {
 impl Sweep {
     /// How `topology` over `slices` slices sweeps with `threads` threads, or `None` where it
     /// would not pay or cannot: too small a mesh, neighbours too far apart for bands at least
-    /// `4 DEPTH` reaches wide, or scatter, which computes its forces in a pass of its own.
+    /// `4 DEPTH` reaches wide, or scatter, which sweeps its blocks instead (see `blocks`).
     pub(crate) fn plan(topology: &Topology, slices: usize, threads: usize) -> Option<Self> {
         let Topology::Gather(table) = topology else {
             return None;
@@ -103,7 +105,7 @@ fn reach(table: &GatherTable) -> usize {
 
 /// The buffers of a sweep, as pointers that every band's thread uses (see [`Buffers::step`]).
 #[derive(Clone, Copy)]
-struct Buffers {
+pub(crate) struct Buffers {
     /// Positions at even steps of the sweep (`current`) and at odd ones (`next`).
     positions: [[*mut Block; 3]; 2],
     /// The same as points, when the force pass reads them.
@@ -119,6 +121,36 @@ unsafe impl Send for Buffers {}
 unsafe impl Sync for Buffers {}
 
 impl Buffers {
+    /// The buffers of `solver`'s sweep: `current` and `next` in turn, with their points when
+    /// the force pass reads them.
+    fn of(solver: &mut CpuSolver, reads_points: bool) -> Self {
+        let points = |rows: &mut Vec<[Point; LANES]>| reads_points.then_some(rows.as_mut_ptr());
+        Self {
+            positions: [
+                solver.current.axes_mut().map(<[Block]>::as_mut_ptr),
+                solver.next.axes_mut().map(<[Block]>::as_mut_ptr),
+            ],
+            points: [points(&mut solver.points), points(&mut solver.next_points)],
+            delta: solver.delta.axes_mut().map(<[Block]>::as_mut_ptr),
+            slices: solver.numbering.slice_count(),
+        }
+    }
+
+    /// The positions of step `j` of the sweep (`j = 0`: those it starts from).
+    ///
+    /// # Safety
+    /// While the view is in use, no other thread may write what is read through it.
+    pub(crate) unsafe fn positions<'a>(&self, j: usize) -> Positions<'a> {
+        // SAFETY: the buffers hold `self.slices` slices; the caller's guarantee for the rest.
+        unsafe {
+            Positions::from_raw(
+                self.positions[j % 2].map(|axis| axis.cast_const()),
+                self.slices,
+                self.points[j % 2].map(|points| points.cast_const()),
+            )
+        }
+    }
+
     /// Runs step `j` of the sweep over `slices` with `kernel`, reading the positions of step
     /// `j - 1` and writing those of step `j` and the deltas. True if all results are finite.
     ///
@@ -127,7 +159,7 @@ impl Buffers {
     /// positions of step `j`, the points and the deltas), nor write any it reads (those of
     /// step `j - 1` within the reach of `slices`). The module docs show the schedule that
     /// keeps to this.
-    unsafe fn step(
+    pub(crate) unsafe fn step(
         &self,
         j: usize,
         slices: Range<usize>,
@@ -137,16 +169,12 @@ impl Buffers {
             return true;
         }
         assert!(slices.end <= self.slices, "sweep slices out of bounds");
-        let (read, write) = ((j - 1) % 2, j % 2);
+        let write = j % 2;
         let (start, len) = (slices.start, slices.len());
         // SAFETY: the buffers hold `self.slices` slices (checked above), the caller keeps
         // other threads off what this writes, and writes nothing this reads.
         unsafe {
-            let positions = Positions::from_raw(
-                self.positions[read].map(|axis| axis.cast_const()),
-                self.slices,
-                self.points[read].map(|points| points.cast_const()),
-            );
+            let positions = self.positions(j - 1);
             let out = |axis: *mut Block| std::slice::from_raw_parts_mut(axis.add(start), len);
             let chunk = VertexChunk {
                 first_slice: start,
@@ -161,16 +189,73 @@ impl Buffers {
 }
 
 /// Per step of a sweep (index `j`, 1-based), whether its results were all finite.
-type Finite = [bool; DEPTH + 1];
+pub(crate) type Finite = [bool; DEPTH + 1];
 
-fn both(a: Finite, b: Finite) -> Finite {
+/// Step by step, whether both were finite.
+pub(crate) fn both(a: Finite, b: Finite) -> Finite {
     std::array::from_fn(|j| a[j] && b[j])
+}
+
+impl Sweep {
+    /// `depth` steps over the bands, then over the strips at their boundaries, each slice
+    /// advanced by `kernel` (see the module docs).
+    fn run(
+        &self,
+        depth: usize,
+        buffers: &Buffers,
+        kernel: &(impl Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync),
+    ) -> Finite {
+        let (r, slices) = (self.reach, buffers.slices);
+        let bands = (0..self.bands).into_par_iter().map(|k| {
+            let band = self.band(k, slices);
+            let mut finite: Finite = [true; DEPTH + 1];
+            // Where step j has got to; it covers [start + (j-1) r, end - (j-1) r).
+            let mut reached: [usize; DEPTH + 1] =
+                std::array::from_fn(|j| band.start + j.saturating_sub(1) * r);
+            let mut at = band.start;
+            while at < band.end {
+                let end = (at + ADVANCE).min(band.end);
+                // SAFETY (both calls): the schedule of the module docs.
+                finite[1] &= unsafe { buffers.step(1, at..end, kernel) };
+                for j in 2..=depth {
+                    // One reach behind step j - 1, which also keeps it off the band's end.
+                    let limit = end.saturating_sub((j - 1) * r);
+                    if limit > reached[j] {
+                        finite[j] &= unsafe { buffers.step(j, reached[j]..limit, kernel) };
+                        reached[j] = limit;
+                    }
+                }
+                at = end;
+            }
+            finite
+        });
+        let inner = bands.reduce(|| [true; DEPTH + 1], both);
+        let boundaries = (0..=self.bands).into_par_iter().map(|k| {
+            let b = if k == self.bands {
+                slices
+            } else {
+                self.band(k, slices).start
+            };
+            let mut finite: Finite = [true; DEPTH + 1];
+            for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(2) {
+                let strip = b.saturating_sub((j - 1) * r)..(b + (j - 1) * r).min(slices);
+                // SAFETY: the schedule of the module docs.
+                *finite &= unsafe { buffers.step(j, strip, kernel) };
+            }
+            finite
+        });
+        both(inner, boundaries.reduce(|| [true; DEPTH + 1], both))
+    }
 }
 
 impl CpuSolver {
     /// Whether the next steps may run in one sweep (see the module docs).
     pub(crate) fn can_sweep(&self) -> bool {
-        self.sweep.is_some()
+        let planned = match &self.topology {
+            Topology::Gather(_) => self.sweep.is_some(),
+            Topology::Scatter { .. } => self.blocks.as_ref().is_some_and(Blocks::sweeps),
+        };
+        planned
             && self.tears.rule().is_none()
             && self.external.is_none()
             && self.positions_final_after_integration()
@@ -180,67 +265,28 @@ impl CpuSolver {
     /// steps, and an error names the first step whose results were not all finite.
     pub(crate) fn step_sweep(&mut self, depth: usize) -> Result<(), SimError> {
         assert!((2..=DEPTH).contains(&depth) && self.can_sweep());
-        let sweep = self.sweep.expect("can_sweep checked the plan");
         let isa = self.options.instruction_set;
         let reads_points = self.refresh_points();
-        let Topology::Gather(table) = &self.topology else {
-            unreachable!("only gather plans a sweep");
-        };
-        let slices = self.numbering.slice_count();
+        let buffers = Buffers::of(self, reads_points);
         let integrator = &self.integrator;
-        let points = |rows: &mut Vec<[Point; LANES]>| reads_points.then_some(rows.as_mut_ptr());
-        let buffers = Buffers {
-            positions: [
-                self.current.axes_mut().map(<[Block]>::as_mut_ptr),
-                self.next.axes_mut().map(<[Block]>::as_mut_ptr),
-            ],
-            points: [points(&mut self.points), points(&mut self.next_points)],
-            delta: self.delta.axes_mut().map(<[Block]>::as_mut_ptr),
-            slices,
-        };
-        let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
-            kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
-        };
-        let r = sweep.reach;
-        let bands = (0..sweep.bands).into_par_iter().map(|k| {
-            let band = sweep.band(k, slices);
-            let mut finite: Finite = [true; DEPTH + 1];
-            // Where step j has got to; it covers [start + (j-1) r, end - (j-1) r).
-            let mut reached: [usize; DEPTH + 1] =
-                std::array::from_fn(|j| band.start + j.saturating_sub(1) * r);
-            let mut at = band.start;
-            while at < band.end {
-                let end = (at + ADVANCE).min(band.end);
-                // SAFETY (both calls): the schedule of the module docs.
-                finite[1] &= unsafe { buffers.step(1, at..end, &kernel) };
-                for j in 2..=depth {
-                    // One reach behind step j - 1, which also keeps it off the band's end.
-                    let limit = end.saturating_sub((j - 1) * r);
-                    if limit > reached[j] {
-                        finite[j] &= unsafe { buffers.step(j, reached[j]..limit, &kernel) };
-                        reached[j] = limit;
-                    }
-                }
-                at = end;
+        let finite = match &mut self.topology {
+            Topology::Gather(table) => {
+                let sweep = self.sweep.expect("can_sweep checked the plan");
+                let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
+                    kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
+                };
+                sweep.run(depth, &buffers, &kernel)
             }
-            finite
-        });
-        let inner = bands.reduce(|| [true; DEPTH + 1], both);
-        let boundaries = (0..=sweep.bands).into_par_iter().map(|k| {
-            let b = if k == sweep.bands {
-                slices
-            } else {
-                sweep.band(k, slices).start
-            };
-            let mut finite: Finite = [true; DEPTH + 1];
-            for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(2) {
-                let strip = b.saturating_sub((j - 1) * r)..(b + (j - 1) * r).min(slices);
-                // SAFETY: the schedule of the module docs.
-                *finite &= unsafe { buffers.step(j, strip, &kernel) };
+            Topology::Scatter {
+                springs,
+                incidence,
+                spring_forces,
+            } => {
+                let blocks = self.blocks.as_ref().expect("can_sweep checked the plan");
+                let tables = (&*springs, &*incidence);
+                blocks.sweep(depth, isa, tables, spring_forces, integrator, &buffers)
             }
-            finite
-        });
-        let finite = both(inner, boundaries.reduce(|| [true; DEPTH + 1], both));
+        };
         // Stop at the first step with a result that is not finite, as single steps would.
         let last = (1..=depth).find(|&j| !finite[j]).unwrap_or(depth);
         if last % 2 == 1 {
