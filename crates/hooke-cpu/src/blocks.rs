@@ -461,9 +461,8 @@ impl Outputs {
 
 #[cfg(test)]
 mod tests {
-    use hooke_core::Solver;
     use hooke_core::scene::{MeshSection, Scene};
-    use hooke_testkit::{benchmark_scene, state_of};
+    use hooke_testkit::benchmark_scene;
 
     use crate::{CpuSolver, Method};
 
@@ -483,14 +482,17 @@ mod tests {
         solver
     }
 
-    #[test]
-    fn block_by_block_steps_give_the_states_of_plain_steps() {
-        let meshes = [
-            // Just above the size that steps block by block.
+    /// A grid and an irregular mesh just above the size that steps block by block.
+    fn meshes() -> [(MeshSection, u32); 2] {
+        [
             (MeshSection::unit_grid(384, 384), 384 * 384),
             (MeshSection::unit_irregular(140_000, 11), 140_000),
-        ];
-        for (mesh, vertices) in meshes {
+        ]
+    }
+
+    #[test]
+    fn block_by_block_steps_give_the_states_of_plain_steps() {
+        for (mesh, vertices) in meshes() {
             let scene = benchmark_scene(mesh, vertices);
             for threads in [1, 2, 3] {
                 let mut plain = solver(&scene, threads, false, false);
@@ -511,27 +513,15 @@ mod tests {
                         "{vertices} vertices, band {b}: no slice waits"
                     );
                 }
-                for steps in [1, 5, 20] {
-                    plain.step(steps).expect("stable");
-                    blocked.step(steps).expect("stable");
-                    let (a, b) = (state_of(&plain), state_of(&blocked));
-                    assert!(
-                        a == b,
-                        "{vertices} vertices, {threads} threads, after {} steps",
-                        blocked.steps_taken()
-                    );
-                }
+                let what = format!("{vertices} vertices, {threads} threads");
+                plain.assert_steps_alike(&mut blocked, &[1, 5, 20], &what);
             }
         }
     }
 
     #[test]
     fn sweeps_over_blocks_give_the_states_of_plain_steps() {
-        let meshes = [
-            (MeshSection::unit_grid(384, 384), 384 * 384),
-            (MeshSection::unit_irregular(140_000, 11), 140_000),
-        ];
-        for (mesh, vertices) in meshes {
+        for (mesh, vertices) in meshes() {
             let scene = benchmark_scene(mesh, vertices);
             for threads in [1, 2, 3] {
                 let mut plain = solver(&scene, threads, false, false);
@@ -544,16 +534,8 @@ mod tests {
                     assert_eq!(plan.bands.len() - 1, threads.min(2), "{plan:?}");
                 }
                 // Sweeps of every depth, odd ones included, and a lone step between them.
-                for steps in [4, 1, 2, 3, 7, 9] {
-                    plain.step(steps).expect("stable");
-                    swept.step(steps).expect("stable");
-                    let (a, b) = (state_of(&plain), state_of(&swept));
-                    assert!(
-                        a == b,
-                        "{vertices} vertices, {threads} threads, after {} steps",
-                        swept.steps_taken()
-                    );
-                }
+                let what = format!("{vertices} vertices, {threads} threads");
+                plain.assert_steps_alike(&mut swept, &[4, 1, 2, 3, 7, 9], &what);
             }
         }
     }

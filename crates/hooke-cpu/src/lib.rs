@@ -215,6 +215,23 @@ impl CpuSolver {
         Self::new(&scene.model, &scene.material, options).expect("solver")
     }
 
+    /// Steps `self` and `other` by each of `steps` in turn, asserting after each that their
+    /// states are the same bits (`what` names the case).
+    #[cfg(test)]
+    pub(crate) fn assert_steps_alike(&mut self, other: &mut Self, steps: &[u32], what: &str) {
+        use hooke_core::Solver;
+        for &n in steps {
+            self.step(n).expect("stable");
+            other.step(n).expect("stable");
+            let (a, b) = (
+                hooke_testkit::state_of(self),
+                hooke_testkit::state_of(other),
+            );
+            assert!(a == b, "{what}, after {} steps", other.steps_taken());
+        }
+        assert_eq!(self.steps_taken(), other.steps_taken());
+    }
+
     pub fn new(model: &Model, material: &Material, options: CpuOptions) -> Result<Self, CpuError> {
         let mut builder = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("hooke-cpu-{i}"));
         if let Some(threads) = options.threads {
