@@ -462,6 +462,7 @@ impl Outputs {
 #[cfg(test)]
 mod tests {
     use hooke_core::scene::{MeshSection, Scene};
+    use hooke_core::{SimError, Solver};
     use hooke_testkit::benchmark_scene;
 
     use crate::{CpuSolver, Method};
@@ -530,6 +531,8 @@ mod tests {
                 let plan = swept.blocks.clone().and_then(|b| b.sweep).expect("planned");
                 // Waiting slices and strips at band boundaries inside the mesh are tested too.
                 assert!(plan.reach >= 1, "{vertices} vertices: {plan:?}");
+                // The irregular mesh's rows read points, which the sweep's steps write too.
+                assert_eq!(swept.reads_points, vertices != 384 * 384);
                 if vertices == 384 * 384 {
                     assert_eq!(plan.bands.len() - 1, threads.min(2), "{plan:?}");
                 }
@@ -538,5 +541,25 @@ mod tests {
                 plain.assert_steps_alike(&mut swept, &[4, 1, 2, 3, 7, 9], &what);
             }
         }
+    }
+
+    #[test]
+    fn a_sweep_over_blocks_stops_at_the_first_step_that_blew_up() {
+        let [(mesh, vertices), _] = meshes();
+        let mut scene = benchmark_scene(mesh, vertices);
+        scene.material.dt = 3.0 * scene.max_stable_dt;
+        let blow_up = |sweeps| {
+            let mut solver = solver(&scene, 2, true, sweeps);
+            assert_eq!(solver.can_sweep(), sweeps);
+            let error = solver.step(100_000).expect_err("must blow up");
+            let SimError::NonFinite { step, .. } = error else {
+                panic!("unexpected {error:?}");
+            };
+            assert_eq!(solver.steps_taken(), step);
+            step
+        };
+        let step = blow_up(true);
+        assert!(step > 1 && step < 100_000);
+        assert_eq!(step, blow_up(false));
     }
 }
