@@ -207,7 +207,18 @@ impl Kernel {
         count: u32,
         resources: impl Fn(usize) -> Vec<(u32, wgpu::BindingResource<'a>)>,
     ) -> Result<Self, GpuError> {
-        let pipeline = compute_pipeline(context, label, source, entry_point)?;
+        Self::with_constants(context, label, (source, entry_point, &[]), count, resources)
+    }
+
+    /// [`Kernel::new`] with values for the shader's `override`s, by name.
+    pub fn with_constants<'a>(
+        context: &GpuContext,
+        label: &'static str,
+        (source, entry_point, constants): (&str, &str, &[(&str, f64)]),
+        count: u32,
+        resources: impl Fn(usize) -> Vec<(u32, wgpu::BindingResource<'a>)>,
+    ) -> Result<Self, GpuError> {
+        let pipeline = compute_pipeline_with(context, label, source, entry_point, constants)?;
         let layout = pipeline.get_bind_group_layout(0);
         let groups = [0, 1].map(|current| bind_group(context, label, &layout, &resources(current)));
         Ok(Self {

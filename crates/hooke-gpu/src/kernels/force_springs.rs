@@ -22,13 +22,10 @@ impl ForceSprings {
             .ok_or_else(|| GpuError::Validation("spring forces need the spring records".into()))?;
         let spring_count = model.uniforms.spring_count;
         // Checked here, where it is allocated: gather and the atomic accumulations have none.
-        gpu::check_binding_size(context, "spring forces", vec4s(spring_count as usize))?;
-        let spring_forces = zeroed(
-            context,
-            "spring forces",
-            vec4s(spring_count as usize),
-            wgpu::BufferUsages::empty(),
-        );
+        // One zero force past the springs', never written, which padded incidence rows read.
+        let size = vec4s(spring_count as usize + 1);
+        gpu::check_binding_size(context, "spring forces", size)?;
+        let spring_forces = zeroed(context, "spring forces", size, wgpu::BufferUsages::empty());
         let kernel = Kernel::new(
             context,
             "spring forces",
@@ -53,6 +50,6 @@ impl ForceSprings {
 
     /// Bytes of the per-spring force buffer.
     pub fn bytes(&self) -> u64 {
-        vec4s(self.spring_count as usize)
+        vec4s(self.spring_count as usize + 1)
     }
 }
