@@ -232,6 +232,19 @@ impl CpuSolver {
         assert_eq!(self.steps_taken(), other.steps_taken());
     }
 
+    /// Steps until a result is not finite (within 100,000 steps); the step the error names,
+    /// which must be the solver's count.
+    #[cfg(test)]
+    pub(crate) fn step_until_blown_up(&mut self) -> u64 {
+        use hooke_core::Solver;
+        let error = self.step(100_000).expect_err("must blow up");
+        let SimError::NonFinite { step, .. } = error else {
+            panic!("unexpected {error:?}");
+        };
+        assert_eq!(self.steps_taken(), step);
+        step
+    }
+
     pub fn new(model: &Model, material: &Material, options: CpuOptions) -> Result<Self, CpuError> {
         let mut builder = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("hooke-cpu-{i}"));
         if let Some(threads) = options.threads {
