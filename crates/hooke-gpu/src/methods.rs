@@ -115,12 +115,6 @@ impl GpuMethod {
         }
     }
 
-    /// Whether the per-vertex sums take passes of their own, timed as the accumulation phase
-    /// (gather sums as it computes, as do the atomic accumulations).
-    pub fn accumulates_separately(self) -> bool {
-        matches!(self, Self::Scatter(a) if a.reads_spring_forces())
-    }
-
     pub fn is_deterministic(self) -> bool {
         match self {
             Self::Gather => true,

@@ -22,7 +22,7 @@ use crate::gpu::{read_back, zeroed};
 use crate::kernels::ScatterBuffers;
 use crate::kernels::accumulate_atomic::AccumulateAtomic;
 use crate::kernels::accumulate_blend::AccumulateBlend;
-use crate::kernels::accumulate_incidence::AccumulateIncidence;
+use crate::kernels::accumulate_incidence::{AccumulateIncidence, IncidenceLayout};
 use crate::kernels::balls::Balls;
 use crate::kernels::collide::Collide;
 use crate::kernels::external::External;
@@ -74,6 +74,21 @@ impl Forces {
                 let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
                 let buffers = ScatterBuffers::new(model, &forces, state)?;
                 let fixed_point = accumulation == Accumulation::AtomicFixed;
+                let layout = IncidenceLayout::for_model(&model.model);
+                if let (Accumulation::Incidence, IncidenceLayout::Rows(width)) =
+                    (accumulation, layout)
+                {
+                    let springs = ForceSprings::new(ctx, model, state)?;
+                    let sums = (&springs.spring_forces, extra_forces);
+                    let (integrate, bytes) =
+                        Integrate::incidence_rows(ctx, model, state, sums, width)?;
+                    return Ok(Forces::Scatter {
+                        springs: Some(springs),
+                        accumulation: Box::new(Accumulator::InIntegration { bytes }),
+                        forces,
+                        integrate,
+                    });
+                }
                 let (springs, accumulator) = match accumulation {
                     Accumulation::AtomicF32 | Accumulation::AtomicFixed => {
                         let sum = AccumulateAtomic::new(ctx, &buffers, state, fixed_point)?;
@@ -119,6 +134,10 @@ enum Accumulator {
     /// atomic-f32 or atomic-fixed: forces and sums in one pass.
     Atomic(AccumulateAtomic),
     Incidence(AccumulateIncidence),
+    /// Incidence in padded rows, summed in the integration pass; the table's bytes.
+    InIntegration {
+        bytes: u64,
+    },
     Blend(AccumulateBlend),
 }
 
@@ -297,6 +316,7 @@ impl GpuSolver {
                 let (topology, scratch) = match accumulation.as_ref() {
                     Accumulator::Atomic(_) => (0, 0),
                     Accumulator::Incidence(a) => (a.bytes(), 0),
+                    Accumulator::InIntegration { bytes } => (*bytes, 0),
                     Accumulator::Blend(a) => (0, a.bytes()),
                 };
                 // The per-vertex force sums too.
@@ -383,6 +403,8 @@ impl GpuSolver {
                     Accumulator::Incidence(a) => {
                         sink.pass(acc, &mut |e, t| a.kernel.encode(e, current, t))?;
                     }
+                    // Summed as each vertex is integrated, timed as integration.
+                    Accumulator::InIntegration { .. } => {}
                     Accumulator::Blend(a) => {
                         sink.pass(acc, &mut |e, t| a.encode_draw(e, t))?;
                         sink.pass(acc, &mut |e, t| a.encode_resolve(e, t))?;
@@ -506,11 +528,7 @@ impl GpuSolver {
     /// none. The same passes as every other step.
     fn run_timed_step(&mut self) -> Result<(PhaseTimes, TimingSource), RunError> {
         let mut times = PhaseTimes {
-            force_accumulation: self
-                .model
-                .method
-                .accumulates_separately()
-                .then_some(Duration::ZERO),
+            force_accumulation: self.accumulates_separately().then_some(Duration::ZERO),
             ..Default::default()
         };
         let source = match &self.timestamps {
@@ -564,6 +582,19 @@ impl GpuSolver {
         }
     }
 
+    /// Whether the per-vertex sums take passes of their own, timed as the accumulation phase:
+    /// gather sums as it computes, as do the atomic accumulations, and incidence in padded
+    /// rows sums in the integration pass.
+    pub fn accumulates_separately(&self) -> bool {
+        match &self.force {
+            Forces::Gather(_) => false,
+            Forces::Scatter { accumulation, .. } => matches!(
+                accumulation.as_ref(),
+                Accumulator::Incidence(_) | Accumulator::Blend(_)
+            ),
+        }
+    }
+
     /// Up to this many steps go into one command buffer.
     const STEPS_PER_SUBMISSION: u32 = 256;
 }
@@ -574,6 +605,7 @@ impl Solver for GpuSolver {
             Forces::Gather(gather) => format!("{}, ", gather.variant.name()),
             Forces::Scatter { accumulation, .. } => match accumulation.as_ref() {
                 Accumulator::Atomic(sum) if sum.reads_stencil => "stencil, ".to_owned(),
+                Accumulator::InIntegration { .. } => "rows, ".to_owned(),
                 _ => String::new(),
             },
         };

@@ -290,7 +290,7 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
             // accumulation passes of their own: what `accumulates_separately` (and so the
             // bench's columns) claims. Gather and the atomic accumulations sum in the force
             // pass.
-            let separate = method.accumulates_separately();
+            let separate = plain.accumulates_separately();
             let accumulated = with_clock.force_accumulation;
             assert_eq!(
                 accumulated.is_some_and(|t| t > std::time::Duration::ZERO),
@@ -310,9 +310,27 @@ fn timed_steps_equal_plain_steps_with_either_clock() {
         }
         assert_eq!(wall.steps_taken(), 6);
     }
-    assert!(!GpuMethod::Gather.accumulates_separately());
-    assert!(!GpuMethod::Scatter(Accumulation::AtomicFixed).accumulates_separately());
-    assert!(GpuMethod::Scatter(Accumulation::Incidence).accumulates_separately());
+    // Incidence sums a grid's padded rows in the integration pass, an irregular mesh's rows
+    // in a pass of its own.
+    let irregular = benchmark_scene(MeshSection::unit_irregular(300, 2), 300);
+    for (scene, method, separate) in [
+        (&scene, GpuMethod::Gather, false),
+        (&scene, GpuMethod::Scatter(Accumulation::AtomicFixed), false),
+        (&scene, GpuMethod::Scatter(Accumulation::Incidence), false),
+        (
+            &irregular,
+            GpuMethod::Scatter(Accumulation::Incidence),
+            true,
+        ),
+    ] {
+        let solver = gpu_solver(&context, scene, method).expect("solver");
+        assert_eq!(
+            solver.accumulates_separately(),
+            separate,
+            "{}",
+            method.name()
+        );
+    }
 }
 
 #[test]

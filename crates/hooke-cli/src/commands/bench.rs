@@ -466,7 +466,7 @@ fn measure(
                 "gpu",
                 method.name(),
                 0,
-                method.accumulates_separately(),
+                phases.iter().any(|p| p.force_accumulation.is_some()),
                 method != GpuMethod::Gather,
                 memory.table_1() as usize,
                 None,

@@ -17,18 +17,14 @@ const B_END: u32 = 0x8000_0000;
 /// would hold 2.2).
 const MOST_PADDED_QUARTERS: usize = 5;
 
-#[derive(Debug)]
-pub struct AccumulateIncidence {
-    pub kernel: Kernel,
-    bytes: u64,
-}
-
-/// How the incidence table is laid out for the kernel.
+/// How the incidence table is laid out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IncidenceLayout {
-    /// Each vertex's entries from its offset (`main`).
+    /// Each vertex's entries from its offset: summed by `accumulate_incidence.wgsl` into a
+    /// force per vertex, which `integrate` reads.
     Offsets,
-    /// Every vertex's entries padded to the same count (`rows`).
+    /// Every vertex's entries padded to this many: summed and integrated in one pass
+    /// (`integrate_incidence.wgsl`).
     Rows(u32),
 }
 
@@ -38,94 +34,81 @@ impl IncidenceLayout {
         let adjacency = &model.adjacency;
         let n = model.vertex_count();
         let widest = (0..n).map(|v| adjacency.range(v).len()).max().unwrap_or(0);
-        let entries = adjacency.springs.len();
-        if widest > 0 && 4 * widest * n <= MOST_PADDED_QUARTERS * entries {
+        if widest > 0 && 4 * widest * n <= MOST_PADDED_QUARTERS * adjacency.springs.len() {
             Self::Rows(widest as u32)
         } else {
             Self::Offsets
         }
     }
+
+    /// The table's entries in this layout, and by offsets each vertex's first (one more
+    /// ending the last). A padding entry names the zero force past the springs' (the force
+    /// pass's buffer keeps one) as a far end: it adds -0.0, which leaves every sum's bits.
+    pub fn table(self, model: &Model) -> (Vec<u32>, Option<Vec<u32>>) {
+        let adjacency = &model.adjacency;
+        let row = |v: usize| {
+            adjacency.range(v).map(move |k| {
+                let spring = adjacency.springs[k];
+                let far = model.spring_ends[spring as usize][1] as usize == v;
+                spring | if far { B_END } else { 0 }
+            })
+        };
+        let vertices = 0..model.vertex_count();
+        match self {
+            Self::Offsets => {
+                let entries = vertices.flat_map(row).collect();
+                (entries, Some(adjacency.offsets.clone()))
+            }
+            Self::Rows(width) => {
+                let padding = model.spring_count() as u32 | B_END;
+                let padded = |v: usize| {
+                    let pad = width as usize - adjacency.range(v).len();
+                    row(v).chain(std::iter::repeat_n(padding, pad))
+                };
+                (vertices.flat_map(padded).collect(), None)
+            }
+        }
+    }
+}
+
+#[derive(Debug)]
+pub struct AccumulateIncidence {
+    pub kernel: Kernel,
+    bytes: u64,
 }
 
 impl AccumulateIncidence {
-    /// The accumulation over `spring_forces`, which must hold one zero force past the springs'.
+    /// The accumulation of `spring_forces` by offsets (see [`IncidenceLayout::Offsets`]).
     pub fn new(
         context: &GpuContext,
         model: &Model,
         buffers: &ScatterBuffers<'_>,
         spring_forces: &wgpu::Buffer,
     ) -> Result<Self, GpuError> {
-        let layout = IncidenceLayout::for_model(model);
-        Self::with_layout(context, model, buffers, spring_forces, layout)
-    }
-
-    /// [`AccumulateIncidence::new`] with the table laid out as `layout`.
-    pub fn with_layout(
-        context: &GpuContext,
-        model: &Model,
-        buffers: &ScatterBuffers<'_>,
-        spring_forces: &wgpu::Buffer,
-        layout: IncidenceLayout,
-    ) -> Result<Self, GpuError> {
-        let adjacency = &model.adjacency;
-        let entry = |v: usize, k: usize| {
-            let spring = adjacency.springs[k];
-            let far = model.spring_ends[spring as usize][1] as usize == v;
-            spring | if far { B_END } else { 0 }
-        };
-        let n = model.vertex_count();
+        let (entries, offsets) = IncidenceLayout::Offsets.table(model);
+        let offsets = offsets.expect("offsets");
         let none = wgpu::BufferUsages::empty();
-        let (entries, offsets, entry_point, constants) = match layout {
-            IncidenceLayout::Offsets => {
-                let entries: Vec<u32> = (0..n)
-                    .flat_map(|v| adjacency.range(v).map(move |k| entry(v, k)))
-                    .collect();
-                let offsets = adjacency.offsets.clone();
-                (entries, Some(offsets), "main", vec![])
-            }
-            IncidenceLayout::Rows(width) => {
-                // The zero force past the springs', negated: -0.0, which adds nothing.
-                let padding = model.spring_count() as u32 | B_END;
-                let entries: Vec<u32> = (0..n)
-                    .flat_map(|v| {
-                        let row = adjacency.range(v).map(move |k| entry(v, k));
-                        let pad = width as usize - adjacency.range(v).len();
-                        row.chain(std::iter::repeat_n(padding, pad))
-                    })
-                    .collect();
-                (
-                    entries,
-                    None,
-                    "rows",
-                    vec![("ROW_ENTRIES", f64::from(width))],
-                )
-            }
-        };
+        let offsets_buffer = storage(context, "incidence offsets", &offsets, none);
         let entries_buffer = storage(context, "incidence entries", &entries, none);
-        let offsets_buffer = offsets
-            .as_ref()
-            .map(|offsets| storage(context, "incidence offsets", offsets, none));
-        let kernel = Kernel::with_constants(
+        let kernel = Kernel::new(
             context,
             "accumulate incidence",
-            (super::ACCUMULATE_INCIDENCE, entry_point, &constants),
+            super::ACCUMULATE_INCIDENCE,
+            "main",
             buffers.vertex_count,
             |current| {
-                let mut resources = vec![
+                vec![
                     (0, buffers.model.uniforms_binding(current)),
                     (1, spring_forces.as_entire_binding()),
+                    (2, offsets_buffer.as_entire_binding()),
                     (3, entries_buffer.as_entire_binding()),
                     (4, buffers.forces.as_entire_binding()),
-                ];
-                if let Some(offsets) = &offsets_buffer {
-                    resources.push((2, offsets.as_entire_binding()));
-                }
-                resources
+                ]
             },
         )?;
         Ok(Self {
             kernel,
-            bytes: offsets.as_deref().map_or(0, bytes_of) + bytes_of(&entries),
+            bytes: bytes_of(&offsets) + bytes_of(&entries),
         })
     }
 
@@ -150,15 +133,8 @@ mod tests {
 
     #[test]
     fn incidence_sums_spring_forces_at_the_vertices_as_the_reference_does() {
-        // By offsets and in padded rows (the irregular scene's rows pad to 2x its entries):
-        // the same sums, bit for bit.
-        let sums = [true, false].map(|offsets| {
-            let sums = accumulated(Accumulation::Incidence, stretched_scene(), offsets)?;
+        if let Some(sums) = accumulated(Accumulation::Incidence, stretched_scene(), false) {
             assert_close(&sums.actual, &sums.expected, TOLERANCE, "incidence");
-            Some(sums.actual)
-        });
-        if let [Some(offsets), Some(rows)] = sums {
-            assert!(offsets == rows, "padded rows change the sums");
         }
     }
 

@@ -4,9 +4,10 @@
 //! positions and updates the deltas in place; records the first non-finite vertex. The
 //! atomic-fixed accumulation's forces are integer sums, which `integrate_fixed.wgsl` reads.
 
+use super::accumulate_incidence::IncidenceLayout;
 use crate::context::{GpuContext, GpuError};
-use crate::gpu::Kernel;
-use crate::model::GpuModel;
+use crate::gpu::{Kernel, storage};
+use crate::model::{GpuModel, bytes_of};
 use crate::state::GpuState;
 
 #[derive(Debug)]
@@ -42,6 +43,37 @@ impl Integrate {
         )?;
         Ok(Self { kernel })
     }
+
+    /// The incidence accumulation of `spring_forces` fused with integration, over the table in
+    /// rows of `width` entries (see [`IncidenceLayout::Rows`]); and the table's bytes.
+    pub fn incidence_rows(
+        context: &GpuContext,
+        model: &GpuModel,
+        state: &GpuState,
+        (spring_forces, extra_forces): (&wgpu::Buffer, &wgpu::Buffer),
+        width: u32,
+    ) -> Result<(Self, u64), GpuError> {
+        let (entries, _) = IncidenceLayout::Rows(width).table(&model.model);
+        let none = wgpu::BufferUsages::empty();
+        let entries_buffer = storage(context, "incidence rows", &entries, none);
+        let kernel = Kernel::with_constants(
+            context,
+            "sum incidence rows and integrate",
+            (
+                super::INTEGRATE_INCIDENCE,
+                "main",
+                &[("ROW_ENTRIES", f64::from(width))],
+            ),
+            model.uniforms.vertex_count,
+            |current| {
+                let mut resources = verlet_bindings(model, state, extra_forces, current);
+                resources.push((8, spring_forces.as_entire_binding()));
+                resources.push((9, entries_buffer.as_entire_binding()));
+                resources
+            },
+        )?;
+        Ok((Self { kernel }, bytes_of(&entries)))
+    }
 }
 
 /// The bindings `verlet.wgsl` declares (0-4, 6, 7), for every kernel that integrates; each
@@ -69,10 +101,14 @@ mod tests {
 
     use super::*;
     use crate::gpu::zeroed;
+    use crate::kernels::ScatterBuffers;
+    use crate::kernels::accumulate_incidence::AccumulateIncidence;
+    use crate::kernels::force_springs::ForceSprings;
     use crate::kernels::testing::{
-        assert_next_positions, context, damped_on_gpu, expected_verlet_step,
-        reference_spring_forces, run,
+        assert_next_positions, context, damped_on_gpu, expected_verlet_step, read_vec3s,
+        reference_spring_forces, run, stretched_scene,
     };
+    use crate::methods::{Accumulation, GpuMethod};
     use crate::model::vec4s;
     use crate::state::positions_to_vec4;
 
@@ -108,5 +144,62 @@ mod tests {
         });
         let expected = expected_verlet_step(&scene, &seen, &spring, &extra);
         assert_next_positions(&context, &gpu_state, &expected, TOLERANCE_M);
+    }
+
+    #[test]
+    fn incidence_rows_summed_while_integrating_step_as_the_separate_passes_do() {
+        let Some(context) = context() else { return };
+        let (mut scene, state) = stretched_scene();
+        scene.material.damping = 0.05;
+        let n = scene.model.vertex_count();
+        let adjacency = &scene.model.adjacency;
+        let widest = (0..n)
+            .map(|v| adjacency.range(v).len())
+            .max()
+            .expect("vertices");
+        // One step from the same state: spring forces, then the sums by offsets and the
+        // integration pass, or the sums of rows padded to the widest vertex in the
+        // integration pass. The next positions and deltas.
+        let step = |rows: bool| {
+            let method = GpuMethod::Scatter(Accumulation::Incidence);
+            let model =
+                GpuModel::new(&context, &scene.model, &scene.material, method).expect("model");
+            let gpu_state = GpuState::new(&context, n);
+            gpu_state.write(&context, &state);
+            model.write_uniforms(&context);
+            let scratch = |label| zeroed(&context, label, vec4s(n), wgpu::BufferUsages::empty());
+            let (forces, extra) = (scratch("forces"), scratch("extra"));
+            let springs = ForceSprings::new(&context, &model, &gpu_state).expect("springs");
+            let current = gpu_state.current;
+            if rows {
+                let sums = (&springs.spring_forces, &extra);
+                let (integrate, _) =
+                    Integrate::incidence_rows(&context, &model, &gpu_state, sums, widest as u32)
+                        .expect("kernel");
+                run(&context, |e| {
+                    springs.kernel.encode(e, current, None);
+                    integrate.kernel.encode(e, current, None);
+                });
+            } else {
+                let buffers = ScatterBuffers::new(&model, &forces, &gpu_state).expect("records");
+                let spring_forces = &springs.spring_forces;
+                let sum = AccumulateIncidence::new(&context, &scene.model, &buffers, spring_forces)
+                    .expect("kernel");
+                let integrate =
+                    Integrate::new(&context, &model, &gpu_state, &forces, &extra, false)
+                        .expect("kernel");
+                run(&context, |e| {
+                    springs.kernel.encode(e, current, None);
+                    sum.kernel.encode(e, current, None);
+                    integrate.kernel.encode(e, current, None);
+                });
+            }
+            let next = read_vec3s(&context, &gpu_state.positions[1 - current], n);
+            (next, read_vec3s(&context, &gpu_state.deltas, n))
+        };
+        let (by_offsets, in_rows) = (step(false), step(true));
+        assert!(by_offsets == in_rows, "padded rows change the step");
+        let moved = by_offsets.0.iter().zip(&state.positions);
+        assert!(moved.filter(|(a, b)| a.distance(**b) > 1e-6).count() > n / 2);
     }
 }

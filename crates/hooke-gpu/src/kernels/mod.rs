@@ -110,6 +110,7 @@ pub const ACCUMULATE_INCIDENCE: &str = kernel_source!("accumulate_incidence.wgsl
 pub const ACCUMULATE_BLEND: &str = kernel_source!("accumulate_blend.wgsl");
 pub const RESOLVE_BLEND: &str = kernel_source!("resolve_blend.wgsl");
 pub const INTEGRATE: &str = kernel_source!(with verlet "integrate.wgsl");
+pub const INTEGRATE_INCIDENCE: &str = kernel_source!(with verlet "integrate_incidence.wgsl");
 pub const INTEGRATE_FIXED: &str = kernel_source!(with verlet "integrate_fixed.wgsl");
 pub const EXTERNAL: &str = kernel_source!("external.wgsl");
 pub const TEAR: &str = kernel_source!("tear.wgsl");
@@ -130,6 +131,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("accumulate_blend", ACCUMULATE_BLEND),
     ("resolve_blend", RESOLVE_BLEND),
     ("integrate", INTEGRATE),
+    ("integrate_incidence", INTEGRATE_INCIDENCE),
     ("integrate_fixed", INTEGRATE_FIXED),
     ("external", EXTERNAL),
     ("tear", TEAR),

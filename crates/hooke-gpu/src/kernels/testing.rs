@@ -12,7 +12,7 @@ use crate::context::GpuContext;
 use crate::gpu::{read_back, zeroed};
 use crate::kernels::ScatterBuffers;
 use crate::kernels::accumulate_atomic::AccumulateAtomic;
-use crate::kernels::accumulate_incidence::{AccumulateIncidence, IncidenceLayout};
+use crate::kernels::accumulate_incidence::AccumulateIncidence;
 use crate::kernels::force_springs::ForceSprings;
 use crate::methods::{Accumulation, GpuMethod};
 use crate::model::{GpuModel, vec4s};
@@ -205,9 +205,7 @@ pub struct Accumulated {
 }
 
 /// Spring forces, then `accumulation`, from a stretched `scene` and `state` (see
-/// [`stretched`]), reading the spring records when `records` even where a stencil could serve
-/// (incidence: with `records`, the table by offsets; without, padded rows even where offsets
-/// would serve).
+/// [`stretched`]), reading the spring records when `records` even where a stencil could serve.
 /// `None` without a device, or without the feature the accumulation needs.
 pub fn accumulated(
     accumulation: Accumulation,
@@ -237,25 +235,9 @@ pub fn accumulated(
     let actual = match accumulation {
         Accumulation::Incidence => {
             let springs = ForceSprings::new(&context, &model, &gpu_state).expect("springs");
-            // The rows padded to the widest vertex's even where offsets would serve.
-            let layout = match IncidenceLayout::for_model(&scene.model) {
-                _ if records => IncidenceLayout::Offsets,
-                IncidenceLayout::Offsets => {
-                    let adjacency = &scene.model.adjacency;
-                    let widest = (0..n).map(|v| adjacency.range(v).len()).max();
-                    IncidenceLayout::Rows(widest.unwrap_or(0) as u32)
-                }
-                rows => rows,
-            };
-            let spring_forces = &springs.spring_forces;
-            let sum = AccumulateIncidence::with_layout(
-                &context,
-                &scene.model,
-                &buffers,
-                spring_forces,
-                layout,
-            )
-            .expect("kernel");
+            let sum =
+                AccumulateIncidence::new(&context, &scene.model, &buffers, &springs.spring_forces)
+                    .expect("kernel");
             run(&context, |e| {
                 springs.kernel.encode(e, current, None);
                 sum.kernel.encode(e, current, None);
