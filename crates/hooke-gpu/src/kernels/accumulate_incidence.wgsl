@@ -18,8 +18,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     var force = vec3<f32>(0.0);
     for (var k = offsets[v]; k < offsets[v + 1u]; k++) {
         let e = entries[k];
-        let f = spring_forces[e & ~B_END].xyz;
-        force += select(f, -f, (e & B_END) != 0u);
+        force += on_entry_end(spring_forces[entry_spring(e)].xyz, e);
     }
     forces[v] = vec4<f32>(force, 0.0);
 }

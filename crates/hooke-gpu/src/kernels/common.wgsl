@@ -74,6 +74,16 @@ const BALL_MARK: u32 = 0x80000000u;
 // Incidence entries: spring index plus this bit when the vertex is the spring's far end.
 const B_END: u32 = 0x80000000u;
 
+// The spring of incidence entry `entry` (its index, without B_END).
+fn entry_spring(entry: u32) -> u32 {
+    return entry & ~B_END;
+}
+
+// `force`, a spring's force on its near end, on the end that incidence entry `entry` names.
+fn on_entry_end(force: vec3<f32>, entry: u32) -> vec3<f32> {
+    return select(force, -force, (entry & B_END) != 0u);
+}
+
 // Force of a spring on its near end (paper eq. 1, sign of eq. 4): D (1 - l0 / |d|) d.
 fn spring_force(near: vec3<f32>, far: vec3<f32>, stiffness: f32, rest_length: f32) -> vec3<f32> {
     let d = far - near;

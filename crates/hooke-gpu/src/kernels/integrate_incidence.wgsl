@@ -24,8 +24,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     var force = vec3<f32>(0.0);
     for (var i = 0u; i < ROW_ENTRIES; i++) {
         let e = entries[v * ROW_ENTRIES + i];
-        let f = spring_forces[e & ~B_END].xyz;
-        force += select(f, -f, (e & B_END) != 0u);
+        force += on_entry_end(spring_forces[entry_spring(e)].xyz, e);
     }
     integrate_vertex(v, positions[v].xyz, force);
 }
