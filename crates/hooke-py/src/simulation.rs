@@ -725,7 +725,8 @@ impl Simulation {
     }
 
     /// One step with each phase timed, in ms (`force_accumulation` only where the sums take
-    /// passes of their own: CPU scatter, GPU incidence and blend), and how
+    /// passes of their own: CPU scatter, GPU blend, and GPU incidence where its rows do not
+    /// pad cheaply, as on irregular meshes), and how
     /// (`"timestamps"` on a GPU that has them, else `"wall-clock"`).
     fn step_timed<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let (times, source) = py.detach(|| self.with(|s| s.step_timed().or_raise()))?;
