@@ -51,13 +51,6 @@ impl Accumulation {
         matches!(self, Self::AtomicFixed | Self::Incidence)
     }
 
-    /// Whether it sums a buffer of per-spring forces that a pass of its own computed (the
-    /// paper's separate force and accumulation phases). The atomic accumulations add each
-    /// force in the pass that computes it, and need no such buffer.
-    pub fn reads_spring_forces(self) -> bool {
-        !matches!(self, Self::AtomicF32 | Self::AtomicFixed)
-    }
-
     pub(crate) fn required_feature(self) -> Option<(wgpu::Features, &'static str)> {
         match self {
             Self::AtomicF32 => Some((

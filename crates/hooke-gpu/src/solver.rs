@@ -50,8 +50,9 @@ enum Forces {
         /// (incidence, blend); the atomic ones compute the forces in their own pass.
         springs: Option<ForceSprings>,
         accumulation: Box<Accumulator>,
-        /// Per-vertex spring forces, the accumulation's sums.
-        forces: wgpu::Buffer,
+        /// Per-vertex spring forces, the accumulation's sums (none where the integration pass
+        /// sums each vertex's springs itself).
+        forces: Option<wgpu::Buffer>,
         integrate: Integrate,
     },
 }
@@ -64,68 +65,84 @@ impl Forces {
         state: &GpuState,
         extra_forces: &wgpu::Buffer,
     ) -> Result<Self, GpuError> {
-        let n = model.model.vertex_count();
-        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         Ok(match model.method {
             GpuMethod::Gather => {
                 Forces::Gather(GatherIntegrate::new(ctx, model, state, extra_forces)?)
             }
             GpuMethod::Scatter(accumulation) => {
-                let forces = zeroed(ctx, "vertex forces", vec4s(n), copy);
-                let buffers = ScatterBuffers::new(model, &forces, state)?;
-                let fixed_point = accumulation == Accumulation::AtomicFixed;
-                let layout = IncidenceLayout::for_model(&model.model);
-                if let (Accumulation::Incidence, IncidenceLayout::Rows(width)) =
-                    (accumulation, layout)
-                {
-                    let springs = ForceSprings::new(ctx, model, state)?;
-                    let sums = (&springs.spring_forces, extra_forces);
-                    let (integrate, bytes) =
-                        Integrate::incidence_rows(ctx, model, state, sums, width)?;
-                    return Ok(Forces::Scatter {
-                        springs: Some(springs),
-                        accumulation: Box::new(Accumulator::InIntegration { bytes }),
-                        forces,
-                        integrate,
-                    });
-                }
-                let (springs, accumulator) = match accumulation {
-                    Accumulation::AtomicF32 | Accumulation::AtomicFixed => {
-                        let sum = AccumulateAtomic::new(ctx, &buffers, state, fixed_point)?;
-                        (None, Accumulator::Atomic(sum))
-                    }
-                    Accumulation::Incidence => {
-                        let springs = ForceSprings::new(ctx, model, state)?;
-                        let sum = AccumulateIncidence::new(
-                            ctx,
-                            &model.model,
-                            &buffers,
-                            &springs.spring_forces,
-                        )?;
-                        (Some(springs), Accumulator::Incidence(sum))
-                    }
-                    Accumulation::BlendR32f
-                    | Accumulation::BlendR16f
-                    | Accumulation::BlendRgba8 => {
-                        let springs = ForceSprings::new(ctx, model, state)?;
-                        let sum = AccumulateBlend::new(
-                            ctx,
-                            &buffers,
-                            &springs.spring_forces,
-                            accumulation,
-                        )?;
-                        (Some(springs), Accumulator::Blend(sum))
-                    }
+                let rows = match (accumulation, IncidenceLayout::for_model(&model.model)) {
+                    (Accumulation::Incidence, IncidenceLayout::Rows(width)) => Some(width),
+                    _ => None,
                 };
-                let integrate =
-                    Integrate::new(ctx, model, state, &forces, extra_forces, fixed_point)?;
-                Forces::Scatter {
-                    springs,
-                    accumulation: Box::new(accumulator),
-                    forces,
-                    integrate,
+                match rows {
+                    Some(width) => Self::incidence_rows(ctx, model, state, extra_forces, width)?,
+                    None => Self::scatter(ctx, model, state, extra_forces, accumulation)?,
                 }
             }
+        })
+    }
+
+    /// Incidence over rows padded to `width` entries, summed in the integration pass (no
+    /// per-vertex sums, see [`IncidenceLayout::Rows`]).
+    fn incidence_rows(
+        ctx: &GpuContext,
+        model: &GpuModel,
+        state: &GpuState,
+        extra_forces: &wgpu::Buffer,
+        width: u32,
+    ) -> Result<Self, GpuError> {
+        let springs = ForceSprings::new(ctx, model, state)?;
+        let sums = (&springs.spring_forces, extra_forces);
+        let (integrate, bytes) = Integrate::incidence_rows(ctx, model, state, sums, width)?;
+        Ok(Forces::Scatter {
+            springs: Some(springs),
+            accumulation: Box::new(Accumulator::InIntegration { bytes }),
+            forces: None,
+            integrate,
+        })
+    }
+
+    /// Scatter with an accumulation into per-vertex sums, which the integration pass reads.
+    fn scatter(
+        ctx: &GpuContext,
+        model: &GpuModel,
+        state: &GpuState,
+        extra_forces: &wgpu::Buffer,
+        accumulation: Accumulation,
+    ) -> Result<Self, GpuError> {
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let forces = zeroed(
+            ctx,
+            "vertex forces",
+            vec4s(model.model.vertex_count()),
+            copy,
+        );
+        let buffers = ScatterBuffers::new(model, &forces, state)?;
+        let fixed_point = accumulation == Accumulation::AtomicFixed;
+        let (springs, accumulator) = match accumulation {
+            Accumulation::AtomicF32 | Accumulation::AtomicFixed => {
+                let sum = AccumulateAtomic::new(ctx, &buffers, state, fixed_point)?;
+                (None, Accumulator::Atomic(sum))
+            }
+            Accumulation::Incidence => {
+                let springs = ForceSprings::new(ctx, model, state)?;
+                let sum =
+                    AccumulateIncidence::new(ctx, &model.model, &buffers, &springs.spring_forces)?;
+                (Some(springs), Accumulator::Incidence(sum))
+            }
+            Accumulation::BlendR32f | Accumulation::BlendR16f | Accumulation::BlendRgba8 => {
+                let springs = ForceSprings::new(ctx, model, state)?;
+                let sum =
+                    AccumulateBlend::new(ctx, &buffers, &springs.spring_forces, accumulation)?;
+                (Some(springs), Accumulator::Blend(sum))
+            }
+        };
+        let integrate = Integrate::new(ctx, model, state, &forces, extra_forces, fixed_point)?;
+        Ok(Forces::Scatter {
+            springs,
+            accumulation: Box::new(accumulator),
+            forces: Some(forces),
+            integrate,
         })
     }
 }
@@ -311,6 +328,7 @@ impl GpuSolver {
             Forces::Scatter {
                 springs,
                 accumulation,
+                forces,
                 ..
             } => {
                 let (topology, scratch) = match accumulation.as_ref() {
@@ -320,8 +338,9 @@ impl GpuSolver {
                     Accumulator::Blend(a) => (0, a.bytes()),
                 };
                 // The per-vertex force sums too.
+                let sums = forces.as_ref().map_or(0, |_| vec4s(n));
                 let spring_forces = springs.as_ref().map_or(0, ForceSprings::bytes);
-                (topology, vec4s(n) + spring_forces + scratch)
+                (topology, sums + spring_forces + scratch)
             }
         };
         GpuMemory {
@@ -398,6 +417,7 @@ impl GpuSolver {
                     // Forces computed as they are summed: one pass, timed as the force phase
                     // (as gather's).
                     Accumulator::Atomic(a) => {
+                        let forces = forces.as_ref().expect("atomic sums into per-vertex forces");
                         sink.pass(Phase::Force, &mut |e, t| a.encode(e, forces, current, t))?;
                     }
                     Accumulator::Incidence(a) => {

@@ -31,14 +31,22 @@ pub enum IncidenceLayout {
 impl IncidenceLayout {
     /// Rows as wide as the largest valence where padding them costs little, else offsets.
     pub fn for_model(model: &Model) -> Self {
-        let adjacency = &model.adjacency;
-        let n = model.vertex_count();
-        let widest = (0..n).map(|v| adjacency.range(v).len()).max().unwrap_or(0);
-        if widest > 0 && 4 * widest * n <= MOST_PADDED_QUARTERS * adjacency.springs.len() {
+        let widest = Self::widest(model);
+        let padded = widest * model.vertex_count();
+        if widest > 0 && 4 * padded <= MOST_PADDED_QUARTERS * model.adjacency.springs.len() {
             Self::Rows(widest as u32)
         } else {
             Self::Offsets
         }
+    }
+
+    /// The largest valence of `model`: the width of rows that hold every vertex's entries.
+    pub fn widest(model: &Model) -> usize {
+        let adjacency = &model.adjacency;
+        (0..model.vertex_count())
+            .map(|v| adjacency.range(v).len())
+            .max()
+            .unwrap_or(0)
     }
 
     /// The table's entries in this layout, and by offsets each vertex's first (one more

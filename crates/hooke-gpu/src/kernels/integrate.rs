@@ -152,11 +152,7 @@ mod tests {
         let (mut scene, state) = stretched_scene();
         scene.material.damping = 0.05;
         let n = scene.model.vertex_count();
-        let adjacency = &scene.model.adjacency;
-        let widest = (0..n)
-            .map(|v| adjacency.range(v).len())
-            .max()
-            .expect("vertices");
+        let widest = IncidenceLayout::widest(&scene.model);
         // One step from the same state: spring forces, then the sums by offsets and the
         // integration pass, or the sums of rows padded to the widest vertex in the
         // integration pass. The next positions and deltas.
