@@ -50,9 +50,6 @@ enum Forces {
         /// (incidence, blend); the atomic ones compute the forces in their own pass.
         springs: Option<ForceSprings>,
         accumulation: Box<Accumulator>,
-        /// Per-vertex spring forces, the accumulation's sums (none where the integration pass
-        /// sums each vertex's springs itself).
-        forces: Option<wgpu::Buffer>,
         integrate: Integrate,
     },
 }
@@ -97,7 +94,6 @@ impl Forces {
         Ok(Forces::Scatter {
             springs: Some(springs),
             accumulation: Box::new(Accumulator::InIntegration { bytes }),
-            forces: None,
             integrate,
         })
     }
@@ -141,7 +137,6 @@ impl Forces {
         Ok(Forces::Scatter {
             springs,
             accumulation: Box::new(accumulator),
-            forces: Some(forces),
             integrate,
         })
     }
@@ -328,17 +323,16 @@ impl GpuSolver {
             Forces::Scatter {
                 springs,
                 accumulation,
-                forces,
                 ..
             } => {
-                let (topology, scratch) = match accumulation.as_ref() {
-                    Accumulator::Atomic(_) => (0, 0),
-                    Accumulator::Incidence(a) => (a.bytes(), 0),
-                    Accumulator::InIntegration { bytes } => (*bytes, 0),
-                    Accumulator::Blend(a) => (0, a.bytes()),
+                // Topology, scratch, and the per-vertex force sums (which the integration and
+                // the accumulation's kernels hold) where there are any.
+                let (topology, scratch, sums) = match accumulation.as_ref() {
+                    Accumulator::Atomic(_) => (0, 0, vec4s(n)),
+                    Accumulator::Incidence(a) => (a.bytes(), 0, vec4s(n)),
+                    Accumulator::InIntegration { bytes } => (*bytes, 0, 0),
+                    Accumulator::Blend(a) => (0, a.bytes(), vec4s(n)),
                 };
-                // The per-vertex force sums too.
-                let sums = forces.as_ref().map_or(0, |_| vec4s(n));
                 let spring_forces = springs.as_ref().map_or(0, ForceSprings::bytes);
                 (topology, sums + spring_forces + scratch)
             }
@@ -404,7 +398,6 @@ impl GpuSolver {
             Forces::Scatter {
                 springs,
                 accumulation,
-                forces,
                 integrate,
             } => {
                 if let Some(springs) = springs {
@@ -417,8 +410,7 @@ impl GpuSolver {
                     // Forces computed as they are summed: one pass, timed as the force phase
                     // (as gather's).
                     Accumulator::Atomic(a) => {
-                        let forces = forces.as_ref().expect("atomic sums into per-vertex forces");
-                        sink.pass(Phase::Force, &mut |e, t| a.encode(e, forces, current, t))?;
+                        sink.pass(Phase::Force, &mut |e, t| a.encode(e, current, t))?;
                     }
                     Accumulator::Incidence(a) => {
                         sink.pass(acc, &mut |e, t| a.kernel.encode(e, current, t))?;

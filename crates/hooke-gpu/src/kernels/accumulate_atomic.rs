@@ -19,6 +19,8 @@ use crate::state::GpuState;
 #[derive(Debug)]
 pub struct AccumulateAtomic {
     kernel: Kernel,
+    /// The per-vertex sums the kernel adds into, cleared before it runs.
+    sums: wgpu::Buffer,
     /// Whether the kernel reads the stencil (per vertex) rather than the spring records.
     pub reads_stencil: bool,
 }
@@ -71,20 +73,20 @@ impl AccumulateAtomic {
         )?;
         Ok(Self {
             kernel,
+            sums: buffers.forces.clone(),
             reads_stencil: stencil.is_some(),
         })
     }
 
-    /// Clears the per-vertex forces (`forces`, the buffer given at construction) and adds
-    /// every spring's force, computed from the `current` positions, in.
+    /// Clears the per-vertex sums and adds every spring's force, computed from the `current`
+    /// positions, in.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
-        forces: &wgpu::Buffer,
         current: usize,
         timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
     ) {
-        encoder.clear_buffer(forces, 0, None);
+        encoder.clear_buffer(&self.sums, 0, None);
         self.kernel.encode(encoder, current, timestamps);
     }
 }

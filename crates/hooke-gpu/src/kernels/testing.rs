@@ -246,12 +246,12 @@ pub fn accumulated(
         }
         Accumulation::AtomicF32 => {
             let sum = AccumulateAtomic::new(&context, &buffers, &gpu_state, false).expect("kernel");
-            run(&context, |e| sum.encode(e, &forces, current, None));
+            run(&context, |e| sum.encode(e, current, None));
             read_vec3s(&context, &forces, n)
         }
         Accumulation::AtomicFixed => {
             let sum = AccumulateAtomic::new(&context, &buffers, &gpu_state, true).expect("kernel");
-            run(&context, |e| sum.encode(e, &forces, current, None));
+            run(&context, |e| sum.encode(e, current, None));
             // Integer sums, in units of 1 / fixed_scale newtons (as integrate_fixed.wgsl
             // reads them).
             let bytes = read_back(&context, &[(&forces, vec4s(n))]).expect("read back");
