@@ -67,8 +67,12 @@ impl Forces {
                 Forces::Gather(GatherIntegrate::new(ctx, model, state, extra_forces)?)
             }
             GpuMethod::Scatter(accumulation) => {
-                let rows = match (accumulation, IncidenceLayout::for_model(&model.model)) {
-                    (Accumulation::Incidence, IncidenceLayout::Rows(width)) => Some(width),
+                // Only incidence has a layout to choose (measured on the model's valences).
+                let rows = match accumulation {
+                    Accumulation::Incidence => match IncidenceLayout::for_model(&model.model) {
+                        IncidenceLayout::Rows(width) => Some(width),
+                        IncidenceLayout::Offsets => None,
+                    },
                     _ => None,
                 };
                 match rows {

@@ -49,10 +49,11 @@ impl IncidenceLayout {
             .unwrap_or(0)
     }
 
-    /// The table's entries in this layout, and by offsets each vertex's first (one more
-    /// ending the last). A padding entry names the zero force past the springs' (the force
-    /// pass's buffer keeps one) as a far end: it adds -0.0, which leaves every sum's bits.
-    pub fn table(self, model: &Model) -> (Vec<u32>, Option<Vec<u32>>) {
+    /// The table's entries in this layout: each vertex's from its offset in the model's
+    /// adjacency, or rows of the same entries padded to the width. A padding entry names the
+    /// zero force past the springs' (the force pass's buffer keeps one) as a far end: it adds
+    /// -0.0, which leaves every sum's bits.
+    pub fn entries(self, model: &Model) -> Vec<u32> {
         let adjacency = &model.adjacency;
         let row = |v: usize| {
             adjacency.range(v).map(move |k| {
@@ -63,17 +64,14 @@ impl IncidenceLayout {
         };
         let vertices = 0..model.vertex_count();
         match self {
-            Self::Offsets => {
-                let entries = vertices.flat_map(row).collect();
-                (entries, Some(adjacency.offsets.clone()))
-            }
+            Self::Offsets => vertices.flat_map(row).collect(),
             Self::Rows(width) => {
                 let padding = model.spring_count() as u32 | B_END;
                 let padded = |v: usize| {
                     let pad = width as usize - adjacency.range(v).len();
                     row(v).chain(std::iter::repeat_n(padding, pad))
                 };
-                (vertices.flat_map(padded).collect(), None)
+                vertices.flat_map(padded).collect()
             }
         }
     }
@@ -93,10 +91,10 @@ impl AccumulateIncidence {
         buffers: &ScatterBuffers<'_>,
         spring_forces: &wgpu::Buffer,
     ) -> Result<Self, GpuError> {
-        let (entries, offsets) = IncidenceLayout::Offsets.table(model);
-        let offsets = offsets.expect("offsets");
+        let entries = IncidenceLayout::Offsets.entries(model);
         let none = wgpu::BufferUsages::empty();
-        let offsets_buffer = storage(context, "incidence offsets", &offsets, none);
+        let offsets = &model.adjacency.offsets;
+        let offsets_buffer = storage(context, "incidence offsets", offsets, none);
         let entries_buffer = storage(context, "incidence entries", &entries, none);
         let kernel = Kernel::new(
             context,
@@ -116,7 +114,7 @@ impl AccumulateIncidence {
         )?;
         Ok(Self {
             kernel,
-            bytes: bytes_of(&offsets) + bytes_of(&entries),
+            bytes: bytes_of(offsets) + bytes_of(&entries),
         })
     }
 

@@ -53,7 +53,7 @@ impl Integrate {
         (spring_forces, extra_forces): (&wgpu::Buffer, &wgpu::Buffer),
         width: u32,
     ) -> Result<(Self, u64), GpuError> {
-        let (entries, _) = IncidenceLayout::Rows(width).table(&model.model);
+        let entries = IncidenceLayout::Rows(width).entries(&model.model);
         let none = wgpu::BufferUsages::empty();
         let entries_buffer = storage(context, "incidence rows", &entries, none);
         let kernel = Kernel::with_constants(
