@@ -32,6 +32,16 @@ impl selfcollide::Points for NextPoints<'_> {
         Vec3::new(x[block][lane], y[block][lane], z[block][lane])
     }
 
+    fn lanes(&self, place: u32) -> Option<[&[f32; selfcollide::LANES]; 3]> {
+        let place = place as usize;
+        if !place.is_multiple_of(LANES) {
+            return None;
+        }
+        let [x, y, z] = self.axes;
+        let block = place / LANES;
+        Some([x.get(block)?, y.get(block)?, z.get(block)?])
+    }
+
     /// A whole block where `places` name one in order (a grid's patch is 8 rows of 8
     /// consecutive vertices, its members sorted by place), a point at a time elsewhere: the
     /// culling reads every vertex each step, and one load per coordinate took an eighth of a

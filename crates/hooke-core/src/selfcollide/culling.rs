@@ -5,8 +5,10 @@
 //! Vertices are grouped into patches of up to [`PATCH`], close together where they were first
 //! seen (Morton order of those positions). Each patch keeps reference positions `R_i`, taken
 //! when its shape was last renewed. Each step its vertices' displacements `u_i = x_i - R_i` are
-//! split into the centre `c_P` of their bounding box and a remainder of at most `E_P`, so for
-//! `i` in `P` and `j` in `Q`
+//! split into a centre `c_P` and a remainder of at most `E_P`; any centre will do, and the
+//! measurement takes whichever of two leaves the smaller `E_P` (where the patch's last step of
+//! motion carries it, or the centre of the displacements' box). So for `i` in `P` and `j` in
+//! `Q`
 //!
 //! ```text
 //! |x_i - x_j| >= |(R_i + c_P) - (R_j + c_Q)| - E_P - E_Q.
@@ -36,9 +38,10 @@
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
 //! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
 
-use glam::{BVec4A, DVec3, Vec3, Vec4};
+use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
+use super::LANES;
 use super::wide::wide;
 use super::{Points, prefetch};
 use crate::Adjacency;
@@ -82,6 +85,9 @@ struct Patch {
     /// The sum of `E_P` at every renewal, m: how much the renewals may have cost the cached
     /// gaps of its near pairs.
     renewed: f64,
+    /// `moved` when the patch was measured before, m: with `moved` now, its last step's
+    /// motion, which sets where the next measurement centres its displacements.
+    last_moved: DVec3,
     /// The smallest `g_PQ` over its near pairs measured since the references were taken, m,
     /// and the one before they were last taken (what sets when they are renewed).
     closest: f32,
@@ -137,6 +143,9 @@ pub struct Culling {
     places: Vec<u32>,
     /// `R_i`, a frame per patch.
     references: Vec<Frame>,
+    /// Whether each patch's members fill 8 of the owner's blocks ([`Points::lanes`]), which
+    /// the patch is then measured from where they lie.
+    blocked: Vec<bool>,
     /// The patch and slot within it of each vertex.
     patch_of: Vec<u32>,
     /// Each slot of `members`' neighbours, as slots of `members` (rows of a CSR table): a
@@ -374,6 +383,17 @@ impl Culling {
             .chunks(PATCH)
             .map(|places| gather(points, places))
             .collect();
+        self.blocked = self
+            .places
+            .chunks(PATCH)
+            .map(|places| {
+                places.len() == PATCH
+                    && places.chunks(LANES).all(|run| {
+                        run.iter().zip(run[0]..).all(|(&place, next)| place == next)
+                            && points.lanes(run[0]).is_some()
+                    })
+            })
+            .collect();
         let count = n.div_ceil(PATCH);
         self.patches = self
             .references
@@ -383,6 +403,7 @@ impl Culling {
                 spread: 0.0,
                 shift: DVec3::ZERO,
                 renewed: 0.0,
+                last_moved: DVec3::ZERO,
                 closest: f32::INFINITY,
                 earlier_closest: f32::INFINITY,
                 reference_scale: scale_of(references),
@@ -463,10 +484,20 @@ impl Culling {
             .par_iter_mut()
             .zip(self.references.par_iter_mut())
             .zip(self.places.par_chunks(PATCH))
-            .map_init(Scratch::new, |scratch, ((patch, references), places)| {
-                gather_into(points, places, &mut scratch.positions);
-                measure_patch(patch, references, scratch, distance)
-            })
+            .zip(self.blocked.par_iter())
+            .map_init(
+                Scratch::new,
+                |scratch, (((patch, references), places), &blocked)| {
+                    let rows = match blocked.then(|| blocks_of(points, places)).flatten() {
+                        Some(rows) => rows,
+                        None => {
+                            gather_into(points, places, &mut scratch.positions);
+                            rows_of(&scratch.positions)
+                        }
+                    };
+                    measure_patch(patch, references, &rows, distance)
+                },
+            )
             .try_reduce(|| 0.0, |a, b| Some(a.max(b)))?;
         for i in (0..self.nodes.len()).rev() {
             let node = self.nodes[i];
@@ -760,19 +791,38 @@ impl Culling {
     }
 }
 
+/// A patch's points as 8 rows of [`LANES`] slots, by axis: slots `8 r..8 r + 8` of a frame,
+/// or one of the owner's blocks.
+type Rows<'a> = [[&'a [f32; LANES]; 3]; PATCH / LANES];
+
+/// The rows of a patch whose members fill 8 blocks of the owner, straight from them.
+fn blocks_of<'a, P: Points + ?Sized>(points: &'a P, places: &[u32]) -> Option<Rows<'a>> {
+    const NONE: [f32; LANES] = [0.0; LANES];
+    let mut rows = [[&NONE; 3]; PATCH / LANES];
+    for (row, run) in rows.iter_mut().zip(places.chunks_exact(LANES)) {
+        *row = points.lanes(run[0])?;
+    }
+    Some(rows)
+}
+
+/// The rows of a frame.
+fn rows_of(frame: &Frame) -> Rows<'_> {
+    let axes = frame.each_ref().map(|axis| axis.as_chunks::<LANES>().0);
+    std::array::from_fn(|r| axes.map(|axis| &axis[r]))
+}
+
 /// One patch's step: see [`Culling::measure_patches`]. Returns its largest coordinate, or
-/// `None` if a position is not finite. Everything runs on whole frames, 4 lanes at a time.
+/// `None` if a position is not finite.
 fn measure_patch(
     patch: &mut Patch,
     references: &mut Frame,
-    scratch: &mut Scratch,
+    rows: &Rows,
     distance: f32,
 ) -> Option<f32> {
-    // Compiled for AVX2 where there is one: the same 4-lane operations, without the copies
-    // between registers that two-operand SSE needs.
+    // Compiled for AVX2 where there is one: each row's lanes are one vector.
     wide(
         #[inline(always)]
-        || measure_patch_with(patch, references, scratch, distance),
+        || measure_patch_with(patch, references, rows, distance),
     )
 }
 
@@ -780,48 +830,75 @@ fn measure_patch(
 fn measure_patch_with(
     patch: &mut Patch,
     references: &mut Frame,
-    Scratch { positions, moved }: &mut Scratch,
+    rows: &Rows,
     distance: f32,
 ) -> Option<f32> {
-    // One pass per axis: the displacements, both boxes, and whether all is finite.
-    let (mut low, mut high, mut moved_low, mut moved_high) =
-        ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
-    // A mask, not a sum of `x * 0` as `poison` takes: the compiler keeps a sum of floats in
-    // order, one add after another, where it folds the masks' bitwise ands in any order.
-    let mut finite = BVec4A::splat(true);
-    for a in 0..3 {
-        let mut extremes = [
-            Vec4::INFINITY,
-            Vec4::NEG_INFINITY,
-            Vec4::INFINITY,
-            Vec4::NEG_INFINITY,
-        ];
-        for (m, (x, r)) in moved[a]
-            .chunks_exact_mut(4)
-            .zip(quads(&positions[a]).zip(quads(&references[a])))
-        {
-            let d = x - r;
-            d.write_to_slice(m);
-            finite &= x.abs().cmplt(Vec4::INFINITY);
-            extremes = [
-                extremes[0].min(x),
-                extremes[1].max(x),
-                extremes[2].min(d),
-                extremes[3].max(d),
-            ];
+    // Any centre bounds the displacements, each with its own spread. One pass measures two:
+    // where the patch's last step of motion carries it (a sheet that moves as one then has
+    // next to no spread), and the centre of the displacements' box, whose spread is at most
+    // half the box's diagonal; the smaller spread is kept. (The box's centre and the
+    // farthest displacement from it, taken before, needed a second pass over the patch.)
+    let moved = patch.moved();
+    let guess = (moved + (moved - patch.last_moved) - patch.shift).as_vec3();
+    let guess_axes = guess.to_array();
+    let reference_rows = references
+        .each_ref()
+        .map(|axis| axis.as_chunks::<LANES>().0);
+    let lanes = |value: f32| [value; LANES];
+    let (mut low, mut high) = ([lanes(f32::INFINITY); 3], [lanes(f32::NEG_INFINITY); 3]);
+    let (mut moved_low, mut moved_high) = (low, high);
+    // `x * 0` is zero for a finite `x` and NaN otherwise, and a sum keeps a NaN (a sum per
+    // lane, which the compiler keeps in a vector: no lane's order changes).
+    let (mut poison, mut farthest) = (lanes(0.0), lanes(0.0));
+    for (r, row) in rows.iter().enumerate() {
+        let mut squared = lanes(0.0);
+        for a in 0..3 {
+            let (x, reference) = (row[a], &reference_rows[a][r]);
+            for l in 0..LANES {
+                let d = x[l] - reference[l];
+                low[a][l] = smaller(low[a][l], x[l]);
+                high[a][l] = larger(high[a][l], x[l]);
+                moved_low[a][l] = smaller(moved_low[a][l], d);
+                moved_high[a][l] = larger(moved_high[a][l], d);
+                let e = d - guess_axes[a];
+                squared[l] += e * e;
+                poison[l] += x[l] * 0.0;
+            }
         }
-        low[a] = extremes[0].min_element();
-        high[a] = extremes[1].max_element();
-        moved_low[a] = extremes[2].min_element();
-        moved_high[a] = extremes[3].max_element();
+        for l in 0..LANES {
+            farthest[l] = larger(farthest[l], squared[l]);
+        }
     }
-    if !finite.all() {
+    if poison.iter().any(|&p| p != 0.0) {
         return None;
     }
-    let (low, high) = (Vec3::from_array(low), Vec3::from_array(high));
-    let (moved_low, moved_high) = (Vec3::from_array(moved_low), Vec3::from_array(moved_high));
-    let centre = 0.5 * (moved_low + moved_high);
-    let spread = farthest_squared(moved, centre).sqrt();
+    // Across the lanes, a half of the row against the other, then glam's reductions of 4.
+    let halves =
+        |lanes: &[f32; LANES]| (Vec4::from_slice(&lanes[..4]), Vec4::from_slice(&lanes[4..]));
+    let least = |axes: [[f32; LANES]; 3]| {
+        Vec3::from_array(axes.map(|axis| {
+            let (a, b) = halves(&axis);
+            a.min(b).min_element()
+        }))
+    };
+    let most = |axes: [[f32; LANES]; 3]| {
+        Vec3::from_array(axes.map(|axis| {
+            let (a, b) = halves(&axis);
+            a.max(b).max_element()
+        }))
+    };
+    let (low, high) = (least(low), most(high));
+    let (moved_low, moved_high) = (least(moved_low), most(moved_high));
+    let guessed = {
+        let (a, b) = halves(&farthest);
+        a.max(b).max_element().sqrt()
+    };
+    let boxed = 0.5 * (moved_high - moved_low).length();
+    let (centre, spread) = if guessed <= boxed {
+        (guess, guessed)
+    } else {
+        (0.5 * (moved_low + moved_high), boxed)
+    };
     let scale = low.abs().max(high.abs()).max_element();
     // A quarter of the slack its near pairs had when measured (and a tenth of the distance
     // while none is measured or one is in contact), so a patch renews only when it has bent
@@ -833,6 +910,7 @@ fn measure_patch_with(
         patch.earlier_closest
     };
     let renew_above = (0.25 * (closest - distance)).max(0.1 * distance);
+    patch.last_moved = moved;
     if patch.reference_scale.is_finite() && spread <= renew_above {
         (patch.centre, patch.spread) = (centre, spread);
     } else {
@@ -840,7 +918,11 @@ fn measure_patch_with(
         // besides, so each cached gap, kept in the old frame, holds less `spread` (and the
         // rounding of both, a few units in their last place, which the chain of renewals
         // between two measurements adds up).
-        *references = *positions;
+        for (axis, references) in references.iter_mut().enumerate() {
+            for (row, slots) in rows.iter().zip(references.as_chunks_mut::<LANES>().0) {
+                *slots = *row[axis];
+            }
+        }
         patch.shift += centre.as_dvec3();
         patch.renewed += f64::from(spread) * (1.0 + 1e-5) + f64::from(centre.length()) * 1e-6;
         (patch.centre, patch.spread) = (Vec3::ZERO, 0.0);
@@ -891,20 +973,17 @@ fn gather_into<P: Points + ?Sized>(points: &P, places: &[u32], frame: &mut Frame
     }
 }
 
-/// The frames a task measures patches in, kept from one patch to the next: a frame made
-/// for each patch is zeroed first, 1.5 KiB of stores before any work.
+/// The frame a task gathers patches into where they do not fill blocks of the owner, kept
+/// from one patch to the next: a frame made for each patch is zeroed first, 768 bytes of
+/// stores before any work.
 struct Scratch {
-    /// The patch's positions.
     positions: Frame,
-    /// Their displacements from the references.
-    moved: Frame,
 }
 
 impl Scratch {
     fn new() -> Box<Self> {
         Box::new(Self {
             positions: [[0.0; PATCH]; 3],
-            moved: [[0.0; PATCH]; 3],
         })
     }
 }
@@ -934,20 +1013,6 @@ fn extremes(values: &[f32; PATCH]) -> [f32; 2] {
         (low.min(v), high.max(v))
     });
     [low.min_element(), high.max_element()]
-}
-
-/// The largest squared distance of a frame's points from `centre`.
-#[inline(always)]
-fn farthest_squared(frame: &Frame, centre: Vec3) -> f32 {
-    let [x, y, z] = frame;
-    quads(x)
-        .zip(quads(y))
-        .zip(quads(z))
-        .fold(Vec4::ZERO, |farthest, ((x, y), z)| {
-            let d = [x - centre.x, y - centre.y, z - centre.z];
-            farthest.max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        })
-        .max_element()
 }
 
 /// The smaller of two finite floats, in one vector instruction (`f32::min` also handles NaN,
@@ -1103,6 +1168,57 @@ pub(crate) mod tests {
         }
     }
 
+    /// Positions stored as a solver keeps them, in blocks of [`LANES`] per axis: here in the
+    /// order of a culling's members, so every patch fills 8 blocks.
+    struct Blocked {
+        place_of: Vec<u32>,
+        blocks: [Vec<[f32; LANES]>; 3],
+    }
+
+    impl Blocked {
+        fn new(positions: &[Vec3], members: &[u32]) -> Self {
+            let mut place_of = vec![0; members.len()];
+            for (place, &v) in members.iter().enumerate() {
+                place_of[v as usize] = place as u32;
+            }
+            let blocks = std::array::from_fn(|a| {
+                members
+                    .chunks(LANES)
+                    .map(|run| {
+                        std::array::from_fn(|l| {
+                            run.get(l).map_or(0.0, |&v| positions[v as usize][a])
+                        })
+                    })
+                    .collect()
+            });
+            Self { place_of, blocks }
+        }
+    }
+
+    impl Points for Blocked {
+        fn count(&self) -> usize {
+            self.place_of.len()
+        }
+
+        fn place(&self, v: u32) -> u32 {
+            self.place_of[v as usize]
+        }
+
+        fn at(&self, place: u32) -> Vec3 {
+            let (block, lane) = (place as usize / LANES, place as usize % LANES);
+            Vec3::from_array(self.blocks.each_ref().map(|axis| axis[block][lane]))
+        }
+
+        fn lanes(&self, place: u32) -> Option<[&[f32; LANES]; 3]> {
+            let place = place as usize;
+            let [x, y, z] = &self.blocks;
+            let block = place / LANES;
+            place
+                .is_multiple_of(LANES)
+                .then_some([&x[block], &y[block], &z[block]])
+        }
+    }
+
     #[test]
     fn culled_steps_give_the_same_moves_as_the_plain_passes() {
         type Script = fn(u32, f32, u32, u32, &mut rand_chacha::ChaCha8Rng) -> Vec<Vec3>;
@@ -1159,6 +1275,12 @@ pub(crate) mod tests {
             // Reading the positions from a store in another order, as a solver's numbering
             // keeps them.
             let mut stored = Resolver::default();
+            // Measuring patches straight from a solver's blocks, which hold them whole.
+            let mut blocked = Resolver::default();
+            let mut members = Culling::default();
+            let start = script(side, spacing, 0, steps, &mut rng.clone());
+            members.prove(&start[..], &adjacency, config.distance as f32);
+            let members = members.members;
             let mut moved_steps = 0;
             let mut suspects = Vec::new();
             for t in 0..=steps {
@@ -1174,6 +1296,22 @@ pub(crate) mod tests {
                 assert_eq!(moves, expected, "{name}, step {t}, local");
                 apply(&mut local_only, &moves);
                 assert_eq!(local_only, plain, "{name}, step {t}, local");
+                let stored_in_blocks = Blocked::new(&start, &members);
+                let moves = blocked.resolve(&stored_in_blocks, &weights, &adjacency, &config);
+                assert_eq!(moves, expected, "{name}, step {t}, blocked");
+                let (by_block, by_copy) = (blocked.culling(), resolver.culling());
+                assert!(by_block.blocked.iter().all(|&b| b), "{name}: not blocked");
+                assert!(by_copy.blocked.iter().all(|&b| !b));
+                // The same measurements from the blocks as from a copy of the points.
+                let state = |patch: &Patch| (patch.centre, patch.spread, patch.low, patch.high);
+                assert!(
+                    by_block
+                        .patches
+                        .iter()
+                        .zip(&by_copy.patches)
+                        .all(|(a, b)| state(a) == state(b)),
+                    "{name}, step {t}, blocked"
+                );
                 let reversed = Reversed(start.into_iter().rev().collect());
                 let moves = stored.resolve(&reversed, &weights, &adjacency, &config);
                 assert_eq!(moves, expected, "{name}, step {t}, stored in reverse");

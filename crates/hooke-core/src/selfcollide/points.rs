@@ -6,6 +6,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+/// Positions per block of [`Points::lanes`].
+pub const LANES: usize = 8;
+
 /// The positions of a mesh's vertices, by mesh vertex index.
 pub trait Points: Sync {
     /// How many vertices.
@@ -26,6 +29,15 @@ pub trait Points: Sync {
             let p = self.at(place);
             (x[k], y[k], z[k]) = (p.x, p.y, p.z);
         }
+    }
+
+    /// The [`LANES`] positions stored at `place..place + LANES`, by axis, where the owner
+    /// keeps them as one block per axis (`place` a multiple of `LANES`); `None` where it does
+    /// not. The culling measures every patch each step, straight from these where a patch's
+    /// members fill blocks, without copying them first.
+    fn lanes(&self, place: u32) -> Option<[&[f32; LANES]; 3]> {
+        let _ = place;
+        None
     }
 
     /// Every position in mesh order, into `out` (replacing what it held). In chunks of
