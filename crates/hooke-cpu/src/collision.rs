@@ -41,33 +41,6 @@ impl selfcollide::Points for NextPoints<'_> {
         let block = place / LANES;
         Some([x.get(block)?, y.get(block)?, z.get(block)?])
     }
-
-    /// A whole block where `places` name one in order (a grid's patch is 8 rows of 8
-    /// consecutive vertices, its members sorted by place), a point at a time elsewhere: the
-    /// culling reads every vertex each step, and one load per coordinate took an eighth of a
-    /// 512^2 step in contact.
-    fn gather_into(&self, places: &[u32], mut out: [&mut [f32]; 3]) {
-        let mut k = 0;
-        while k < places.len() {
-            let first = places[k] as usize;
-            let run = places.get(k..k + LANES).is_some_and(|run| {
-                first.is_multiple_of(LANES)
-                    && run.iter().zip(first..).all(|(&p, q)| p as usize == q)
-            });
-            if run {
-                for (axis, out) in self.axes.iter().zip(out.iter_mut()) {
-                    out[k..k + LANES].copy_from_slice(&axis[first / LANES]);
-                }
-                k += LANES;
-            } else {
-                let p = self.at(places[k]);
-                for (out, value) in out.iter_mut().zip([p.x, p.y, p.z]) {
-                    out[k] = value;
-                }
-                k += 1;
-            }
-        }
-    }
 }
 
 impl CpuSolver {

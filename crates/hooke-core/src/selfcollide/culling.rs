@@ -356,7 +356,7 @@ impl Culling {
         order.par_sort_unstable();
         self.members = order.into_iter().map(|(_, v)| v).collect();
         // Which vertices make a patch is all that matters; by place, a grid's patch is rows of
-        // consecutive places, which the owner may copy a run at a time (`Points::gather_into`).
+        // consecutive places, which the owner may lend a run at a time (`Points::run`).
         self.members
             .par_chunks_mut(PATCH)
             .for_each(|members| members.sort_unstable_by_key(|&v| points.place(v)));
@@ -387,11 +387,7 @@ impl Culling {
             .places
             .chunks(PATCH)
             .map(|places| {
-                places.len() == PATCH
-                    && places.chunks(LANES).all(|run| {
-                        run.iter().zip(run[0]..).all(|(&place, next)| place == next)
-                            && points.lanes(run[0]).is_some()
-                    })
+                places.len() == PATCH && places.chunks(LANES).all(|run| points.run(run).is_some())
             })
             .collect();
         let count = n.div_ceil(PATCH);
