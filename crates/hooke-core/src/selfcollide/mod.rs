@@ -160,10 +160,14 @@ struct GridKeys {
 
 impl GridKeys {
     fn new(vertices: usize, config: &SelfCollision, k: u32) -> Self {
+        Self::with_bits(key_bits(vertices), config, k)
+    }
+
+    fn with_bits(bits: u32, config: &SelfCollision, k: u32) -> Self {
         Self {
             inverse_cell: (1.0 / config.cell_size) as f32,
             offset: config.grid_offset(k),
-            bits: key_bits(vertices),
+            bits,
         }
     }
 
@@ -316,6 +320,8 @@ pub struct Resolver {
     local_passes: u64,
     /// Steps with more suspects than one vertex in this many run the full passes.
     local_at_most: usize,
+    /// The key bits of a local pass that sorts this many vertices.
+    local_key_bits: fn(usize) -> u32,
     /// Steps to run without a proof, and how many the last proof that did not help gave.
     unproved: u32,
     backoff: u32,
@@ -334,6 +340,7 @@ impl Default for Resolver {
             movers: Vec::new(),
             local_passes: 0,
             local_at_most: LOCAL_AT_MOST,
+            local_key_bits: key_bits,
             unproved: 0,
             backoff: 0,
             unproved_steps: 0,
@@ -342,7 +349,8 @@ impl Default for Resolver {
 }
 
 impl Resolver {
-    /// [`resolve`]: the same moves in the same order. The passes are skipped when the culling
+    /// [`resolve`]: the same moves, each vertex's in the same order (a local pass lists its
+    /// moves in an order of its own, see `local_pass`). The passes are skipped when the culling
     /// shows that no unjoined pair is closer than the distance, since then none would move.
     /// When it shows that only a few vertices' pairs can be, a pass tests only their windows:
     /// it sorts only them and the vertices that may share a cell with one of them (see
@@ -405,7 +413,7 @@ impl Resolver {
                 self.local_passes += 1;
                 self.nearby
                     .cover(&self.culling, points, config.cell_size as f32);
-                let moves = self.local_pass(n, weights, adjacency, config, k);
+                let moves = self.local_pass(weights, adjacency, config, k);
                 self.nearby.apply(&moves);
                 self.widen_past_movers(&moves);
                 moves
@@ -462,18 +470,21 @@ impl Resolver {
         }
     }
 
-    /// Grid `k`'s pass over the nearby vertices (of a mesh of `n`), testing the suspects.
+    /// Grid `k`'s pass over the nearby vertices, testing the suspects.
     fn local_pass(
         &mut self,
-        n: usize,
         weights: &[f32],
         adjacency: &Adjacency,
         config: &SelfCollision,
         k: u32,
     ) -> Vec<(u32, Vec3)> {
-        // Keyed as a full pass keys them: the key bits follow the mesh's vertex count.
-        let keys = GridKeys::new(n, config, k);
+        // Keyed by the low bits of a full pass's keys, as many as the few vertices sorted
+        // need (16 at 512^2 instead of 24: two 256-counter digits, not two of 4096). The
+        // windows are the same: a run of one key still holds every vertex of the cell, in
+        // vertex order, and a window takes only the cell's vertices (see `window_of`). The
+        // moves come in this sort's order, not a full pass's; each vertex moves once a pass.
         let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
+        let keys = GridKeys::with_bits((self.local_key_bits)(vertices.len()), config, k);
         let sorted = sorted_for_grid(&mut self.binning, positions, &keys);
         let culling = &self.culling;
         let pass = Pass {
