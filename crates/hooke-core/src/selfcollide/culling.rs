@@ -246,6 +246,11 @@ impl Culling {
         &self.members[self.slots(p)]
     }
 
+    /// Where the positions' owner keeps the vertices of patch `p` ([`Points::place`]).
+    pub fn places_of(&self, p: u32) -> &[u32] {
+        &self.places[self.slots(p)]
+    }
+
     /// Calls `each` with every patch whose box at the last proof came within `reach` of the
     /// box `low..high` along every axis (boxes no further apart than that on any axis).
     pub fn patches_near(&self, low: Vec3, high: Vec3, reach: f32, mut each: impl FnMut(u32)) {
