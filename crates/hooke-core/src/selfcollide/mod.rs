@@ -243,9 +243,9 @@ fn same_key_run<'a, I: Iterator<Item = usize> + 'a>(
 }
 
 /// Sorted slots per parallel task of the window test: two tasks per thread, of 1024 to 4096
-/// slots. A local pass's ~10,000 slots at 512^2 made 3 tasks of 4096, and on 16 threads its
-/// window tests took 0.46-0.53 ms a step against 0.25-0.27 in tasks of 1024; on 2 threads,
-/// tasks of 1024 were slower than of 4096.
+/// slots. A local pass's ~10,000 slots at 512^2 made 3 tasks of 4096: its window tests took
+/// 0.46-0.53 ms a step on 16 threads against 0.25-0.27 in tasks of 1024, and 0.36-0.46 on 2
+/// threads against 0.30-0.31 in four tasks.
 fn window_task(slots: usize) -> usize {
     (slots / (2 * rayon::current_num_threads().max(1))).clamp(1024, 4096)
 }

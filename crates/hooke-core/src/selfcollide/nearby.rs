@@ -21,6 +21,8 @@ pub(super) struct Nearby {
     vertices: Vec<u32>,
     /// Their positions, moved by the step's passes so far.
     positions: Vec<Vec3>,
+    /// The positions before the last [`Nearby::gather`], kept for the next.
+    earlier_positions: Vec<Vec3>,
     /// Each mesh vertex's index in `vertices`, `u32::MAX` for the others.
     slots: Vec<u32>,
     /// `vertices` as a bit per mesh vertex (what `gather` lists in order).
@@ -106,7 +108,7 @@ impl Nearby {
     /// vertex by vertex in vertex order, from all over the owner's store, they took 9 ns each
     /// (a step's covering at 512^2 in contact, on one thread).
     fn gather<P: Points + ?Sized>(&mut self, culling: &Culling, points: &P, first_new: usize) {
-        let old_positions = std::mem::take(&mut self.positions);
+        std::mem::swap(&mut self.positions, &mut self.earlier_positions);
         // Marks in the words before each word: a vertex's slot is that plus the marks below
         // it in its own word.
         self.ranks.clear();
@@ -137,7 +139,7 @@ impl Nearby {
                 self.positions[slot] = if i >= first_new {
                     Vec3::new(frame[0][k], frame[1][k], frame[2][k])
                 } else {
-                    old_positions[self.slots[v as usize] as usize]
+                    self.earlier_positions[self.slots[v as usize] as usize]
                 };
             }
         }
