@@ -7,41 +7,6 @@ use rayon::prelude::*;
 
 use crate::CpuSolver;
 use crate::layout::LANES;
-use crate::simd::Block;
-
-/// The step's new positions as self-collision reads them: in the solver's numbering, by axis.
-/// The axes are sliced once here, not per point as `Lanes::get` does: the proof reads every
-/// vertex each step.
-struct NextPoints<'a> {
-    internal: &'a [u32],
-    axes: [&'a [Block]; 3],
-}
-
-impl selfcollide::Points for NextPoints<'_> {
-    fn count(&self) -> usize {
-        self.internal.len()
-    }
-
-    fn place(&self, v: u32) -> u32 {
-        self.internal[v as usize]
-    }
-
-    fn at(&self, place: u32) -> Vec3 {
-        let (block, lane) = (place as usize / LANES, place as usize % LANES);
-        let [x, y, z] = self.axes;
-        Vec3::new(x[block][lane], y[block][lane], z[block][lane])
-    }
-
-    fn lanes(&self, place: u32) -> Option<[&[f32; selfcollide::LANES]; 3]> {
-        let place = place as usize;
-        if !place.is_multiple_of(LANES) {
-            return None;
-        }
-        let [x, y, z] = self.axes;
-        let block = place / LANES;
-        Some([x.get(block)?, y.get(block)?, z.get(block)?])
-    }
-}
 
 impl CpuSolver {
     /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
@@ -50,8 +15,9 @@ impl CpuSolver {
         let Some(config) = self.self_collision else {
             return;
         };
-        let points = NextPoints {
-            internal: &self.numbering.internal,
+        // The step's new positions, where the solver keeps them (its numbering, by axis).
+        let points = selfcollide::BlockPoints {
+            places: &self.numbering.internal,
             axes: self.next.axes(),
         };
         let moves = self.self_collider.resolve(
@@ -196,8 +162,8 @@ mod tests {
             lanes.set(k, [k as f32, 100.0 + k as f32, -(k as f32)]);
         }
         let internal: Vec<u32> = (0..n as u32).collect();
-        let points = NextPoints {
-            internal: &internal,
+        let points = selfcollide::BlockPoints {
+            places: &internal,
             axes: lanes.axes(),
         };
         // An aligned run, a run that is not aligned, a run with a gap, a block's places out of

@@ -1054,7 +1054,9 @@ pub(crate) mod tests {
 
     use super::*;
     use crate::mesh::{GridPlane, grid};
-    use crate::selfcollide::{Resolver, SelfCollision, apply, exact_pairs, joined, resolve};
+    use crate::selfcollide::{
+        BlockPoints, Resolver, SelfCollision, apply, exact_pairs, joined, resolve,
+    };
 
     /// The springs of the generator's grid, `columns` vertices a row (the scripts place the
     /// vertices themselves).
@@ -1196,27 +1198,13 @@ pub(crate) mod tests {
         }
     }
 
-    impl Points for Blocked {
-        fn count(&self) -> usize {
-            self.place_of.len()
-        }
-
-        fn place(&self, v: u32) -> u32 {
-            self.place_of[v as usize]
-        }
-
-        fn at(&self, place: u32) -> Vec3 {
-            let (block, lane) = (place as usize / LANES, place as usize % LANES);
-            Vec3::from_array(self.blocks.each_ref().map(|axis| axis[block][lane]))
-        }
-
-        fn lanes(&self, place: u32) -> Option<[&[f32; LANES]; 3]> {
-            let place = place as usize;
-            let [x, y, z] = &self.blocks;
-            let block = place / LANES;
-            place
-                .is_multiple_of(LANES)
-                .then_some([&x[block], &y[block], &z[block]])
+    impl Blocked {
+        /// The positions as a solver lends them.
+        fn points(&self) -> BlockPoints<'_> {
+            BlockPoints {
+                places: &self.place_of,
+                axes: self.blocks.each_ref().map(Vec::as_slice),
+            }
         }
     }
 
@@ -1312,7 +1300,8 @@ pub(crate) mod tests {
                 apply(&mut local_only, &moves);
                 assert_eq!(local_only, plain, "{name}, step {t}, local");
                 let stored_in_blocks = Blocked::new(&start, &members);
-                let moves = blocked.resolve(&stored_in_blocks, &weights, &adjacency, &config);
+                let moves =
+                    blocked.resolve(&stored_in_blocks.points(), &weights, &adjacency, &config);
                 assert_eq!(moves, expected, "{name}, step {t}, blocked");
                 let (by_block, by_copy) = (blocked.culling(), resolver.culling());
                 assert!(by_block.blocked.iter().all(|&b| b), "{name}: not blocked");

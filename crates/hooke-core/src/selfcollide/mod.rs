@@ -33,7 +33,7 @@ use rayon::prelude::*;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
 use nearby::Nearby;
-pub use points::{LANES, Points};
+pub use points::{BlockPoints, LANES, Points};
 
 use crate::{Adjacency, Model};
 

@@ -77,6 +77,43 @@ pub trait Points: Sync {
     }
 }
 
+/// Positions kept as a solver keeps them: by axis, in blocks of [`LANES`], vertex `v` at
+/// place `places[v]` (block `place / LANES`, lane `place % LANES`). The axes are sliced once,
+/// when this is made, not per point: the culling reads every vertex each step.
+#[derive(Clone, Copy, Debug)]
+pub struct BlockPoints<'a> {
+    /// Each mesh vertex's place.
+    pub places: &'a [u32],
+    /// x, y and z, [`LANES`] places a block.
+    pub axes: [&'a [[f32; LANES]]; 3],
+}
+
+impl Points for BlockPoints<'_> {
+    fn count(&self) -> usize {
+        self.places.len()
+    }
+
+    fn place(&self, v: u32) -> u32 {
+        self.places[v as usize]
+    }
+
+    fn at(&self, place: u32) -> Vec3 {
+        let (block, lane) = (place as usize / LANES, place as usize % LANES);
+        let [x, y, z] = self.axes;
+        Vec3::new(x[block][lane], y[block][lane], z[block][lane])
+    }
+
+    fn lanes(&self, place: u32) -> Option<[&[f32; LANES]; 3]> {
+        let place = place as usize;
+        if !place.is_multiple_of(LANES) {
+            return None;
+        }
+        let [x, y, z] = self.axes;
+        let block = place / LANES;
+        Some([x.get(block)?, y.get(block)?, z.get(block)?])
+    }
+}
+
 impl Points for [Vec3] {
     fn count(&self) -> usize {
         self.len()
