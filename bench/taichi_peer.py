@@ -163,7 +163,15 @@ def main() -> None:
     parser.add_argument("--arch", default="vulkan", choices=["vulkan", "cpu", "cuda"])
     args = parser.parse_args()
     ti.init(arch=getattr(ti, args.arch), default_fp=ti.f32, offline_cache=True)
-    print(f"taichi {ti.__version__} on {args.arch}; median ms/step of {args.repeats} blocks")
+    # Taichi falls back to its CPU backend, with only a warning, when the one asked for is
+    # missing (no Vulkan driver, say): timings taken then are not the GPU method's.
+    running = ti.cfg.arch.name
+    if args.arch != "cpu" and running != args.arch:
+        raise SystemExit(
+            f"taichi_peer.py: asked for --arch {args.arch}, but Taichi runs on {running}"
+            " (is the driver installed? `./run peer-taichi` installs Mesa's Vulkan driver)"
+        )
+    print(f"taichi {ti.__version__} on {running}; median ms/step of {args.repeats} blocks")
     print("| mesh | method | springs | ms/step (median) | range | dispatches |")
     print("|---|---|---|---|---|---|")
     for n in (int(s) for s in args.sizes.split(",")):
