@@ -303,6 +303,29 @@ fn bench_prints_a_row_per_mesh_and_method() {
         );
     }
     assert!(rows.iter().any(|r| r["force_accumulation_ms"].is_null()));
+    // Paired round by round: the shuffled grid and the larger grid against the 16^2 grid,
+    // per method; the irregular mesh of 300 vertices has no grid of its size.
+    let paired = report["paired"].as_array().expect("paired");
+    let against: Vec<(&str, &str, &str)> = paired
+        .iter()
+        .map(|p| {
+            let field = |name: &str| p[name].as_str().expect("a string");
+            (field("mesh"), field("method"), field("against"))
+        })
+        .collect();
+    assert_eq!(
+        against,
+        [
+            ("grid 24^2", "gather", "grid 16^2"),
+            ("grid 24^2", "scatter", "grid 16^2"),
+            ("grid 16^2 shuffled", "gather", "grid 16^2"),
+            ("grid 16^2 shuffled", "scatter", "grid 16^2"),
+        ]
+    );
+    for p in paired {
+        assert!(p["ratio"].as_f64().is_some_and(|r| r > 0.0), "{p}");
+        assert_eq!(p["rounds"].as_array().map(Vec::len), Some(1), "{p}");
+    }
 }
 
 #[test]
@@ -898,7 +921,12 @@ fn gpu_bench_runs_the_gpu_methods_named_and_counts_the_self_collision_passes() {
             "5",
         ],
     );
-    let rows = report["rows"].as_array().expect("rows");
+    let rows: Vec<_> = report["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .filter(|r| r["self_collision"] == 2)
+        .collect();
     let methods: Vec<&str> = rows.iter().filter_map(|r| r["method"].as_str()).collect();
     assert_eq!(methods, ["gather", "scatter/incidence"]);
     // 1024 vertices have 16-bit cell keys: per grid, the keys (which count the sort's first
@@ -939,11 +967,35 @@ fn bench_shows_the_collision_phase_with_self_collision() {
         "20",
         "--warmup",
         "5",
+        "--rounds",
+        "2",
     ]);
-    for row in report["rows"].as_array().expect("rows") {
-        assert!(
-            row["collision_ms"].as_f64().expect("collision phase") > 0.0,
-            "{row}"
-        );
+    // Each method runs without self-collision too, and the rows with it are paired with those.
+    let rows = report["rows"].as_array().expect("rows");
+    let meshes: Vec<&str> = rows.iter().filter_map(|r| r["mesh"].as_str()).collect();
+    assert_eq!(
+        meshes,
+        [
+            "grid 32^2",
+            "grid 32^2",
+            "grid 32^2 + self-collision 2",
+            "grid 32^2 + self-collision 2"
+        ]
+    );
+    for row in rows {
+        if row["self_collision"] == 2 {
+            let collision = row["collision_ms"].as_f64().expect("collision phase");
+            assert!(collision > 0.0, "{row}");
+        } else {
+            assert!(row["self_collision"].is_null(), "{row}");
+            assert!(row["collision_ms"].is_null(), "{row}");
+        }
+    }
+    let paired = report["paired"].as_array().expect("paired");
+    assert_eq!(paired.len(), 2, "{paired:?}");
+    for p in paired {
+        assert_eq!(p["mesh"], "grid 32^2 + self-collision 2");
+        assert_eq!(p["against"], "grid 32^2");
+        assert_eq!(p["rounds"].as_array().map(Vec::len), Some(2), "{p}");
     }
 }

@@ -13,6 +13,12 @@
 //! compare fairly, and the spread over rounds says how far one figure can be trusted. "total"
 //! is then the median of the rounds' medians, shown with their range.
 //!
+//! Paired ratios set rows against each other round by round, per spring: the irregular mesh and
+//! the shuffled grid against the grid with the same vertex count, each larger grid against the
+//! smallest, and a row with self-collision against the same mesh without it (which `hooke
+//! bench --self-collision K` times as well). A ratio of two medians taken in different rounds
+//! moves with the machine's speed; a ratio within a round does not, or much less.
+//!
 //! The bandwidth floor is the bytes one fused step must move at least once divided by the copy
 //! bandwidth measured on the spot, with the same threads, on a buffer as large as those bytes:
 //! it is the time a perfect memory-bound step would take at the cache level where the data lives.
@@ -78,6 +84,7 @@ pub struct BenchArgs {
     pub steps: u32,
     /// Add self-collision (Section 5) with this many staggered grids to every workload; its
     /// cost shows as the collision phase. Distance: half the shortest spring; cells twice that.
+    /// Each workload also runs without it, in the same rounds, for the paired ratio.
     #[arg(long, value_name = "K")]
     pub self_collision: Option<u32>,
     /// Add bending springs (one across every interior edge) with this fraction of the edge
@@ -110,6 +117,10 @@ fn parse_gpu_method(name: &str) -> Result<GpuMethod, String> {
 #[derive(Debug, Serialize)]
 struct Row {
     mesh: String,
+    #[serde(skip)]
+    kind: MeshKind,
+    /// Self-collision's staggered grids, if the workload has it.
+    self_collision: Option<u32>,
     vertices: usize,
     springs: usize,
     backend: &'static str,
@@ -148,6 +159,7 @@ struct Report {
     steps: u32,
     rounds: u32,
     rows: Vec<Row>,
+    paired: Vec<Paired>,
     /// Methods whose accumulation could not hold this workload's forces (fixed point, which
     /// clamps and reports): "mesh method: why". The others still ran.
     skipped: Vec<String>,
@@ -158,7 +170,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let copy_pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
-    let mut meshes: Vec<(String, Workload)> = args
+    let mut meshes: Vec<(String, MeshKind, Workload)> = args
         .sizes
         .iter()
         .map(|&n| {
@@ -167,12 +179,13 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 vertices: n * n,
                 shuffled: false,
             };
-            (format!("grid {n}^2"), workload)
+            (format!("grid {n}^2"), MeshKind::Grid(n), workload)
         })
         .collect();
     if args.irregular > 0 {
         meshes.push((
             format!("irregular {}", args.irregular),
+            MeshKind::Irregular(args.irregular),
             Workload {
                 mesh: MeshSection::unit_irregular(args.irregular, IRREGULAR_SEED),
                 vertices: args.irregular,
@@ -184,6 +197,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         let n = args.shuffled;
         meshes.push((
             format!("grid {n}^2 shuffled"),
+            MeshKind::Shuffled(n),
             Workload {
                 mesh: MeshSection::unit_grid(n, n),
                 vertices: n * n,
@@ -191,6 +205,11 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             },
         ));
     }
+    // With self-collision, each workload also runs without it (first), for the paired ratio.
+    let variants: Vec<Option<u32>> = match args.self_collision {
+        Some(grids) => vec![None, Some(grids)],
+        None => vec![None],
+    };
     let gpu = match args.backend {
         BenchBackend::Cpu => None,
         BenchBackend::Gpu | BenchBackend::All => Some(open_gpu()?),
@@ -199,10 +218,19 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut scenes = Vec::new();
     let mut timed: Vec<Timed> = Vec::new();
     let mut skipped = Vec::new();
-    for (name, workload) in meshes {
-        let scene = workload_scene(&name, workload, args)?;
+    let workloads = meshes.into_iter().flat_map(|(name, kind, workload)| {
+        variants
+            .iter()
+            .map(move |&grids| (name.clone(), kind, workload.clone(), grids))
+    });
+    for (name, kind, workload, self_collision) in workloads {
+        let scene = workload_scene(&name, workload, args, self_collision)?;
         let name = match args.bending {
             Some(_) => format!("{name} + bending"),
+            None => name,
+        };
+        let name = match self_collision {
+            Some(grids) => format!("{name} + self-collision {grids}"),
             None => name,
         };
         let gpu_methods = args.gpu_methods.clone().unwrap_or_else(GpuMethod::all);
@@ -228,6 +256,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             let warmed = simulation.step(args.warmup).map_err(anyhow::Error::from);
             let entry = Timed {
                 name: name.clone(),
+                kind,
+                self_collision,
                 scene: scenes.len(),
                 simulation,
                 rounds_ms: Vec::new(),
@@ -270,6 +300,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         gpu: gpu.as_ref().map(|c| c.describe()),
         steps: args.steps,
         rounds: args.rounds,
+        paired: paired(&rows),
         rows,
         skipped,
     };
@@ -280,8 +311,14 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The benchmark scene of `workload`, with the bending springs and self-collision asked for.
-fn workload_scene(name: &str, workload: Workload, args: &BenchArgs) -> anyhow::Result<Scene> {
+/// The benchmark scene of `workload`, with the bending springs asked for and self-collision
+/// with `self_collision` grids.
+fn workload_scene(
+    name: &str,
+    workload: Workload,
+    args: &BenchArgs,
+    self_collision: Option<u32>,
+) -> anyhow::Result<Scene> {
     let mut scene = benchmark_scene(workload).with_context(|| format!("building {name}"))?;
     if let Some(fraction) = args.bending {
         let stiffness = fraction * scene.model.stiffnesses[0];
@@ -291,7 +328,7 @@ fn workload_scene(name: &str, workload: Workload, args: &BenchArgs) -> anyhow::R
             .add_bending_springs(&pairs, stiffness, 1.0)
             .map_err(|e| anyhow::anyhow!("--bending {fraction}: {e}"))?;
     }
-    if let Some(grids) = args.self_collision {
+    if let Some(grids) = self_collision {
         anyhow::ensure!(
             (1..=selfcollide::MAX_GRIDS).contains(&grids),
             "--self-collision: {grids} grids is outside 1..={}",
@@ -308,6 +345,8 @@ fn workload_scene(name: &str, workload: Workload, args: &BenchArgs) -> anyhow::R
 /// A solver being timed: its workload, and its fused step's median in each round so far.
 struct Timed {
     name: String,
+    kind: MeshKind,
+    self_collision: Option<u32>,
     /// Index of its scene.
     scene: usize,
     simulation: Simulation,
@@ -361,7 +400,19 @@ const IRREGULAR_SEED: u64 = 1;
 /// Seed of the shuffled grid's vertex order.
 const SHUFFLE_SEED: u64 = 2;
 
+/// Which benchmark mesh a row runs: what its paired ratio sets it against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum MeshKind {
+    /// A grid of this many vertices a side, in order.
+    Grid(u32),
+    /// The irregular mesh of (about) this many vertices.
+    Irregular(u32),
+    /// The grid of this many vertices a side, numbered at random.
+    Shuffled(u32),
+}
+
 /// A benchmark mesh: generated, and maybe then numbered in a random order.
+#[derive(Clone)]
 struct Workload {
     mesh: MeshSection,
     /// The vertices asked of the generator.
@@ -494,6 +545,8 @@ fn measure(
         .map(|solver| solver.dispatches_per_step());
     Ok(Row {
         mesh: timed.name.clone(),
+        kind: timed.kind,
+        self_collision: timed.self_collision,
         vertices: scene.model.vertex_count(),
         springs: scene.model.spring_count(),
         backend,
@@ -514,6 +567,70 @@ fn measure(
         bandwidth_floor_ms: bandwidth.map(|b| 1e3 * bytes_per_step as f64 / b),
         dt_above_stability_bound: scene.material.dt > scene.max_stable_dt,
     })
+}
+
+/// One row's fused step against another's, per spring, round by round.
+#[derive(Debug, Serialize)]
+struct Paired {
+    mesh: String,
+    backend: &'static str,
+    method: String,
+    /// The other row's mesh.
+    against: String,
+    /// Median of the rounds' ratios.
+    ratio: f64,
+    /// Each round's ratio, in the order run.
+    rounds: Vec<f64>,
+}
+
+/// The row each row is set against, if any: the same mesh without self-collision for a row
+/// with it; the grid of the same vertex count for the irregular mesh and the shuffled grid;
+/// the smallest grid for a larger one. Always the same backend and method.
+fn reference_of<'a>(row: &Row, rows: &'a [Row]) -> Option<&'a Row> {
+    let alike = |other: &&Row| {
+        other.backend == row.backend && other.method == row.method && other.self_collision.is_none()
+    };
+    let mut candidates = rows.iter().filter(alike);
+    if row.self_collision.is_some() {
+        return candidates.find(|other| other.kind == row.kind);
+    }
+    let grid_side = |other: &Row| match other.kind {
+        MeshKind::Grid(n) => Some(n),
+        _ => None,
+    };
+    match row.kind {
+        MeshKind::Irregular(vertices) => {
+            candidates.find(|other| grid_side(other).is_some_and(|n| n * n == vertices))
+        }
+        MeshKind::Shuffled(side) => candidates.find(|other| other.kind == MeshKind::Grid(side)),
+        MeshKind::Grid(side) => candidates
+            .filter(|other| grid_side(other).is_some_and(|n| n < side))
+            .min_by_key(|other| grid_side(other)),
+    }
+}
+
+/// Every row that has a reference row, against it.
+fn paired(rows: &[Row]) -> Vec<Paired> {
+    rows.iter()
+        .filter_map(|row| {
+            let reference = reference_of(row, rows)?;
+            let per_spring = |ms: f64, row: &Row| ms / row.springs.max(1) as f64;
+            let rounds: Vec<f64> = row
+                .total_rounds_ms
+                .iter()
+                .zip(&reference.total_rounds_ms)
+                .map(|(&a, &b)| per_spring(a, row) / per_spring(b, reference))
+                .collect();
+            Some(Paired {
+                mesh: row.mesh.clone(),
+                backend: row.backend,
+                method: row.method.clone(),
+                against: reference.mesh.clone(),
+                ratio: median_ms(rounds.clone()),
+                rounds,
+            })
+        })
+        .collect()
 }
 
 /// Copy bandwidth in bytes/s (bytes read plus bytes written) over a buffer moving `bytes` per
@@ -604,14 +721,7 @@ fn print_report(report: &Report) {
                 .map_or("-".to_owned(), |i| format!("{i:.3}")),
             r.collision_ms.map_or("-".to_owned(), |c| format!("{c:.3}")),
             format!("{:.3}", r.phased_total_ms),
-            if report.rounds > 1 {
-                let rounds = r.total_rounds_ms.iter().copied();
-                let fastest = rounds.clone().fold(f64::INFINITY, f64::min);
-                let slowest = rounds.fold(f64::NEG_INFINITY, f64::max);
-                format!("{:.3} ({fastest:.3}-{slowest:.3})", r.total_ms)
-            } else {
-                format!("{:.3}", r.total_ms)
-            },
+            with_range(r.total_ms, &r.total_rounds_ms, 3),
             format!("{:.0}", r.springs_per_second / 1e6),
             bytes(r.bytes_per_step),
             r.bandwidth_floor_ms
@@ -621,6 +731,7 @@ fn print_report(report: &Report) {
         ]);
     }
     println!("{}", table(t));
+    print_paired(report);
     println!(
         "gather, and the gpu's atomic-f32 and atomic-fixed: force calc includes the per-vertex sum (no separate accumulation; gather's as in the paper's Table 2); the gpu's gather also integrates in that pass."
     );
@@ -643,9 +754,146 @@ fn print_report(report: &Report) {
     }
 }
 
+/// `median` with `digits` decimals, followed by the smallest and largest of `rounds` where
+/// there are several.
+fn with_range(median: f64, rounds: &[f64], digits: usize) -> String {
+    if rounds.len() < 2 {
+        return format!("{median:.digits$}");
+    }
+    let smallest = rounds.iter().copied().fold(f64::INFINITY, f64::min);
+    let largest = rounds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    format!("{median:.digits$} ({smallest:.digits$}-{largest:.digits$})")
+}
+
+/// The paired ratios, in a table of their own.
+fn print_paired(report: &Report) {
+    if report.paired.is_empty() {
+        return;
+    }
+    let mut t = Table::new();
+    t.set_header(vec![
+        "mesh",
+        "backend",
+        "method",
+        "against",
+        "ratio per spring",
+    ]);
+    for p in &report.paired {
+        t.add_row(vec![
+            p.mesh.clone(),
+            p.backend.to_owned(),
+            p.method.clone(),
+            p.against.clone(),
+            with_range(p.ratio, &p.rounds, 2),
+        ]);
+    }
+    println!(
+        "paired: each row's fused step per spring over another's, taken round by round in the same rounds (median, and range over rounds)"
+    );
+    println!("{}", table(t));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A cpu gather row of `mesh` with `springs` springs and these rounds.
+    fn row(
+        mesh: &str,
+        kind: MeshKind,
+        self_collision: Option<u32>,
+        springs: usize,
+        rounds: &[f64],
+    ) -> Row {
+        Row {
+            mesh: mesh.to_owned(),
+            kind,
+            self_collision,
+            vertices: 0,
+            springs,
+            backend: "cpu",
+            method: "gather".to_owned(),
+            threads: 2,
+            phase_timing: "wall clock",
+            force_calculation_ms: 0.0,
+            force_accumulation_ms: None,
+            integration_ms: None,
+            collision_ms: None,
+            phased_total_ms: 0.0,
+            total_ms: median_ms(rounds.to_vec()),
+            total_rounds_ms: rounds.to_vec(),
+            springs_per_second: 0.0,
+            bytes_per_step: 0,
+            dispatches_per_step: None,
+            copy_bandwidth_gb_per_s: None,
+            bandwidth_floor_ms: None,
+            dt_above_stability_bound: false,
+        }
+    }
+
+    #[test]
+    fn rows_pair_round_by_round_with_their_reference_per_spring() {
+        let rows = vec![
+            row("grid 16^2", MeshKind::Grid(16), None, 100, &[1.0, 2.0, 1.0]),
+            row("grid 32^2", MeshKind::Grid(32), None, 400, &[4.4, 8.0, 4.0]),
+            row(
+                "grid 64^2",
+                MeshKind::Grid(64),
+                None,
+                1600,
+                &[16.0, 16.0, 16.0],
+            ),
+            row(
+                "irregular 256",
+                MeshKind::Irregular(256),
+                None,
+                100,
+                &[1.3, 2.0, 1.5],
+            ),
+            row(
+                "irregular 999",
+                MeshKind::Irregular(999),
+                None,
+                100,
+                &[1.0, 1.0, 1.0],
+            ),
+            row(
+                "grid 16^2 shuffled",
+                MeshKind::Shuffled(16),
+                None,
+                100,
+                &[1.0, 2.2, 1.1],
+            ),
+            row(
+                "grid 32^2 + self-collision 4",
+                MeshKind::Grid(32),
+                Some(4),
+                400,
+                &[13.2, 16.0, 16.0],
+            ),
+        ];
+        let found = paired(&rows);
+        let by_mesh = |mesh: &str| found.iter().find(|p| p.mesh == mesh);
+        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12);
+        // The smallest grid and the irregular mesh with no grid of its size have none.
+        assert!(by_mesh("grid 16^2").is_none() && by_mesh("irregular 999").is_none());
+        let larger = by_mesh("grid 32^2").expect("paired");
+        assert_eq!(larger.against, "grid 16^2");
+        assert!(close(&larger.rounds, &[1.1, 1.0, 1.0]), "{larger:?}");
+        assert!((larger.ratio - 1.0).abs() < 1e-12);
+        // Against the smallest grid, not the next one.
+        assert_eq!(by_mesh("grid 64^2").expect("paired").against, "grid 16^2");
+        let irregular = by_mesh("irregular 256").expect("paired");
+        assert_eq!(irregular.against, "grid 16^2");
+        assert!(close(&irregular.rounds, &[1.3, 1.0, 1.5]) && irregular.ratio == 1.3);
+        assert_eq!(
+            by_mesh("grid 16^2 shuffled").expect("paired").against,
+            "grid 16^2"
+        );
+        let contact = by_mesh("grid 32^2 + self-collision 4").expect("paired");
+        assert_eq!(contact.against, "grid 32^2");
+        assert!(close(&contact.rounds, &[3.0, 2.0, 4.0]) && contact.ratio == 3.0);
+    }
 
     #[test]
     fn only_an_accumulation_out_of_range_skips_a_method() {
