@@ -170,26 +170,25 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let copy_pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
-    let mut meshes: Vec<(String, MeshKind, Workload)> = args
+    let mut meshes: Vec<(String, Workload)> = args
         .sizes
         .iter()
         .map(|&n| {
             let workload = Workload {
                 mesh: MeshSection::unit_grid(n, n),
                 vertices: n * n,
-                shuffled: false,
+                kind: MeshKind::Grid(n),
             };
-            (format!("grid {n}^2"), MeshKind::Grid(n), workload)
+            (format!("grid {n}^2"), workload)
         })
         .collect();
     if args.irregular > 0 {
         meshes.push((
             format!("irregular {}", args.irregular),
-            MeshKind::Irregular(args.irregular),
             Workload {
                 mesh: MeshSection::unit_irregular(args.irregular, IRREGULAR_SEED),
                 vertices: args.irregular,
-                shuffled: false,
+                kind: MeshKind::Irregular(args.irregular),
             },
         ));
     }
@@ -197,11 +196,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         let n = args.shuffled;
         meshes.push((
             format!("grid {n}^2 shuffled"),
-            MeshKind::Shuffled(n),
             Workload {
                 mesh: MeshSection::unit_grid(n, n),
                 vertices: n * n,
-                shuffled: true,
+                kind: MeshKind::Shuffled(n),
             },
         ));
     }
@@ -218,12 +216,13 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut scenes = Vec::new();
     let mut timed: Vec<Timed> = Vec::new();
     let mut skipped = Vec::new();
-    let workloads = meshes.into_iter().flat_map(|(name, kind, workload)| {
+    let workloads = meshes.into_iter().flat_map(|(name, workload)| {
         variants
             .iter()
-            .map(move |&grids| (name.clone(), kind, workload.clone(), grids))
+            .map(move |&grids| (name.clone(), workload.clone(), grids))
     });
-    for (name, kind, workload, self_collision) in workloads {
+    for (name, workload, self_collision) in workloads {
+        let kind = workload.kind;
         let scene = workload_scene(&name, workload, args, self_collision)?;
         let name = match args.bending {
             Some(_) => format!("{name} + bending"),
@@ -417,7 +416,8 @@ struct Workload {
     mesh: MeshSection,
     /// The vertices asked of the generator.
     vertices: u32,
-    shuffled: bool,
+    /// A shuffled grid is numbered at random after it is generated.
+    kind: MeshKind,
 }
 
 /// The benchmark scene; its dt may exceed the conservative stability bound on irregular meshes
@@ -426,11 +426,12 @@ fn benchmark_scene(workload: Workload) -> anyhow::Result<Scene> {
     let name = Path::new("bench");
     let scene = SceneFile::benchmark(workload.mesh.clone(), workload.vertices).build(name, true)?;
     let actual = scene.model.vertex_count() as u32;
-    if actual == workload.vertices && !workload.shuffled {
+    let shuffled = matches!(workload.kind, MeshKind::Shuffled(_));
+    if actual == workload.vertices && !shuffled {
         return Ok(scene);
     }
     // A generator may make a few vertices fewer than asked; m = 1/N needs the real N.
-    let mesh = if workload.shuffled {
+    let mesh = if shuffled {
         scene.mesh.shuffled(SHUFFLE_SEED)
     } else {
         scene.mesh
@@ -614,7 +615,7 @@ fn paired(rows: &[Row]) -> Vec<Paired> {
     rows.iter()
         .filter_map(|row| {
             let reference = reference_of(row, rows)?;
-            let per_spring = |ms: f64, row: &Row| ms / row.springs.max(1) as f64;
+            let per_spring = |ms: f64, of: &Row| ms / of.springs.max(1) as f64;
             let rounds: Vec<f64> = row
                 .total_rounds_ms
                 .iter()
