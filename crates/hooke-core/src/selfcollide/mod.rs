@@ -19,6 +19,7 @@
 //! holds depends only on which vertices share the cell. Everything here is float32, the same arithmetic as the GPU's
 //! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
 
+mod awake;
 mod binning;
 mod culling;
 mod nearby;
@@ -30,6 +31,7 @@ use std::collections::HashMap;
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
+use awake::with_pool_awake;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
 use nearby::Nearby;
@@ -367,7 +369,21 @@ impl Resolver {
     /// `points` are read where their owner keeps them; only a step whose full passes run
     /// copies them all into mesh order. The culling keeps their places ([`Points::place`]), so
     /// one resolver serves one owner's positions.
+    ///
+    /// The current pool's other threads stay awake for the whole call (see `awake`).
     pub fn resolve<P: Points + ?Sized>(
+        &mut self,
+        points: &P,
+        weights: &[f32],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+    ) -> Vec<(u32, Vec3)> {
+        // Dozens of short parallel passes: the pool's other threads wait for them awake.
+        with_pool_awake(|| self.prove_then_pass(points, weights, adjacency, config))
+    }
+
+    /// [`Resolver::resolve`] on the current thread.
+    fn prove_then_pass<P: Points + ?Sized>(
         &mut self,
         points: &P,
         weights: &[f32],
