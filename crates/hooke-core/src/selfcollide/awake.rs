@@ -3,7 +3,7 @@
 //! A rayon worker that finds no work for a few microseconds goes to sleep, and waking it again
 //! costs the next parallel pass far more than the pass itself when the pass is short. On the
 //! project's 2-vCPU Intel VM (2026-11-27, rayon 1.12) a pass of two 10 us tasks took 12 us
-//! when the worker had been idle for 5 us, and 30-39 us after 20-100 us; kept awake, 12-13 us
+//! when the worker had been idle for 5 us, and 24-39 us after 20-500 us; kept awake, 12-13 us
 //! after any pause. A self-collision step is dozens of such passes (the proof's, and each
 //! grid's sort and window tests) with serial work between them, and its second thread
 //! barely paid for itself.
