@@ -588,6 +588,50 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
     }
 }
 
+/// Self-collision's passes run on every thread of the pool, with the threads kept awake
+/// between them (`selfcollide::awake`); which thread runs which task must not change a bit.
+/// The bench's 256^2 sheet after 2,000 steps has enough vertices in contact that the sorts
+/// and window tests split into several tasks (the folding cloth's 576 vertices make one).
+#[test]
+fn self_collision_steps_are_bit_identical_on_one_two_and_four_threads() {
+    use hooke_core::selfcollide::SelfCollision;
+    let mut scene = benchmark_scene(MeshSection::unit_grid(256, 256), 256 * 256);
+    scene.model.collision.self_collision = Some(SelfCollision::for_model(&scene.model));
+    let mut settler = cpu(&scene, Method::Gather, 2);
+    settler.step(2000).expect("stable");
+    let settled = state_of(&settler);
+    let steps = 10;
+    let mut first = None;
+    for method in [Method::Gather, Method::Scatter] {
+        for threads in [1, 2, 4] {
+            let mut solver = cpu(&scene, method, threads);
+            solver.write_state(&settled);
+            solver.step(steps).expect("stable");
+            let positions = state_of(&solver).positions;
+            let first = first.get_or_insert_with(|| positions.clone());
+            assert!(
+                positions == *first,
+                "{method:?} on {threads} threads differs from gather on 1"
+            );
+        }
+    }
+    // The steps must push many pairs apart, or the comparison says little about them.
+    let mut plain = cpu(&scene, Method::Gather, 1);
+    plain.set_self_collision(None).expect("off");
+    plain.write_state(&settled);
+    plain.step(steps).expect("stable");
+    let moved = state_of(&plain)
+        .positions
+        .iter()
+        .zip(first.as_ref().expect("stepped"))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        moved > 1000,
+        "only {moved} vertices moved by self-collision"
+    );
+}
+
 #[test]
 fn a_ball_dropped_on_a_pinned_sheet_is_slowed_and_held_on_every_solver() {
     let scene = hooke_testkit::ball_onto_sheet();
