@@ -170,38 +170,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let copy_pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
-    let mut meshes: Vec<(String, Workload)> = args
-        .sizes
-        .iter()
-        .map(|&n| {
-            let workload = Workload {
-                mesh: MeshSection::unit_grid(n, n),
-                vertices: n * n,
-                kind: MeshKind::Grid(n),
-            };
-            (format!("grid {n}^2"), workload)
-        })
-        .collect();
+    let mut meshes: Vec<MeshKind> = args.sizes.iter().map(|&n| MeshKind::Grid(n)).collect();
     if args.irregular > 0 {
-        meshes.push((
-            format!("irregular {}", args.irregular),
-            Workload {
-                mesh: MeshSection::unit_irregular(args.irregular, IRREGULAR_SEED),
-                vertices: args.irregular,
-                kind: MeshKind::Irregular(args.irregular),
-            },
-        ));
+        meshes.push(MeshKind::Irregular(args.irregular));
     }
     if args.shuffled > 0 {
-        let n = args.shuffled;
-        meshes.push((
-            format!("grid {n}^2 shuffled"),
-            Workload {
-                mesh: MeshSection::unit_grid(n, n),
-                vertices: n * n,
-                kind: MeshKind::Shuffled(n),
-            },
-        ));
+        meshes.push(MeshKind::Shuffled(args.shuffled));
     }
     // With self-collision, each workload also runs without it (first), for the paired ratio.
     let variants: Vec<Option<u32>> = match args.self_collision {
@@ -216,14 +190,12 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut scenes = Vec::new();
     let mut timed: Vec<Timed> = Vec::new();
     let mut skipped = Vec::new();
-    let workloads = meshes.into_iter().flat_map(|(name, workload)| {
-        variants
-            .iter()
-            .map(move |&grids| (name.clone(), workload.clone(), grids))
-    });
-    for (name, workload, self_collision) in workloads {
-        let kind = workload.kind;
-        let scene = workload_scene(&name, workload, args, self_collision)?;
+    let workloads = meshes
+        .into_iter()
+        .flat_map(|kind| variants.iter().map(move |&grids| (kind, grids)));
+    for (kind, self_collision) in workloads {
+        let name = kind.name();
+        let scene = workload_scene(&name, kind, args, self_collision)?;
         let name = match args.bending {
             Some(_) => format!("{name} + bending"),
             None => name,
@@ -314,7 +286,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
 /// with `self_collision` grids.
 fn workload_scene(
     name: &str,
-    workload: Workload,
+    workload: MeshKind,
     args: &BenchArgs,
     self_collision: Option<u32>,
 ) -> anyhow::Result<Scene> {
@@ -399,35 +371,52 @@ const IRREGULAR_SEED: u64 = 1;
 /// Seed of the shuffled grid's vertex order.
 const SHUFFLE_SEED: u64 = 2;
 
-/// Which benchmark mesh a row runs: what its paired ratio sets it against.
+/// A benchmark mesh: which one a row runs, and so what its paired ratio sets it against.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum MeshKind {
     /// A grid of this many vertices a side, in order.
     Grid(u32),
     /// The irregular mesh of (about) this many vertices.
     Irregular(u32),
-    /// The grid of this many vertices a side, numbered at random.
+    /// The grid of this many vertices a side, numbered at random after it is generated.
     Shuffled(u32),
 }
 
-/// A benchmark mesh: generated, and maybe then numbered in a random order.
-#[derive(Clone)]
-struct Workload {
-    mesh: MeshSection,
+impl MeshKind {
+    /// How the tables name it.
+    fn name(self) -> String {
+        match self {
+            Self::Grid(n) => format!("grid {n}^2"),
+            Self::Irregular(vertices) => format!("irregular {vertices}"),
+            Self::Shuffled(n) => format!("grid {n}^2 shuffled"),
+        }
+    }
+
+    /// The mesh generated.
+    fn section(self) -> MeshSection {
+        match self {
+            Self::Grid(n) | Self::Shuffled(n) => MeshSection::unit_grid(n, n),
+            Self::Irregular(vertices) => MeshSection::unit_irregular(vertices, IRREGULAR_SEED),
+        }
+    }
+
     /// The vertices asked of the generator.
-    vertices: u32,
-    /// A shuffled grid is numbered at random after it is generated.
-    kind: MeshKind,
+    fn vertices(self) -> u32 {
+        match self {
+            Self::Grid(n) | Self::Shuffled(n) => n * n,
+            Self::Irregular(vertices) => vertices,
+        }
+    }
 }
 
 /// The benchmark scene; its dt may exceed the conservative stability bound on irregular meshes
 /// (valence up to 12), which the table marks rather than refuses, since the workload is fixed.
-fn benchmark_scene(workload: Workload) -> anyhow::Result<Scene> {
+fn benchmark_scene(workload: MeshKind) -> anyhow::Result<Scene> {
     let name = Path::new("bench");
-    let scene = SceneFile::benchmark(workload.mesh.clone(), workload.vertices).build(name, true)?;
+    let scene = SceneFile::benchmark(workload.section(), workload.vertices()).build(name, true)?;
     let actual = scene.model.vertex_count() as u32;
-    let shuffled = matches!(workload.kind, MeshKind::Shuffled(_));
-    if actual == workload.vertices && !shuffled {
+    let shuffled = matches!(workload, MeshKind::Shuffled(_));
+    if actual == workload.vertices() && !shuffled {
         return Ok(scene);
     }
     // A generator may make a few vertices fewer than asked; m = 1/N needs the real N.
@@ -436,7 +425,7 @@ fn benchmark_scene(workload: Workload) -> anyhow::Result<Scene> {
     } else {
         scene.mesh
     };
-    let file = SceneFile::benchmark(workload.mesh, actual);
+    let file = SceneFile::benchmark(workload.section(), actual);
     Ok(file.build_with_mesh(mesh, Vec::new(), name, true)?)
 }
 
