@@ -19,7 +19,6 @@ pub fn with_pool_awake<R: Send>(work: impl FnOnce() -> R + Send) -> R {
         return work();
     }
     let done = AtomicBool::new(false);
-    let mut result = None;
     rayon::scope(|scope| {
         for _ in 0..others {
             scope.spawn(|_| {
@@ -31,10 +30,10 @@ pub fn with_pool_awake<R: Send>(work: impl FnOnce() -> R + Send) -> R {
                 }
             });
         }
-        result = Some(work());
+        let result = work();
         done.store(true, Ordering::Release);
-    });
-    result.expect("the scope ran the work")
+        result
+    })
 }
 
 #[cfg(test)]
