@@ -227,7 +227,12 @@ impl Culling {
 
     /// Whether `vertex` is one of [`Culling::suspects`].
     pub fn is_suspect(&self, vertex: u32) -> bool {
-        self.suspect_patches[self.patch_of[vertex as usize] as usize]
+        self.is_suspect_patch(self.patch_of[vertex as usize])
+    }
+
+    /// Whether patch `p`'s vertices are suspects.
+    pub fn is_suspect_patch(&self, p: u32) -> bool {
+        self.suspect_patches[p as usize]
     }
 
     /// How far, m, beyond the distance every vertex outside [`Culling::suspects`] was from

@@ -273,11 +273,29 @@ fn prefetch<T>(value: &T) {
     let _ = value;
 }
 
-/// True if sorted slot `j` shares its key with neither slot beside it (most vertices).
-fn alone(j: usize, sorted: &[Entry]) -> bool {
-    let key = key_of(sorted[j]);
-    (j == 0 || key_of(sorted[j - 1]) != key)
-        && sorted.get(j + 1).is_none_or(|&next| key_of(next) != key)
+/// The sorted slots of `slots` that share their key with a slot beside them ("crowded"; most
+/// vertices are alone in their cell) and whose entry `tested` takes, in order.
+///
+/// Without a branch per slot: whether a slot is crowded or tested follows no pattern a
+/// branch predictor could learn, and a misprediction or two per slot cost as much as the
+/// window tests of the few slots that are kept.
+fn crowded_slots(
+    slots: std::ops::Range<usize>,
+    sorted: &[Entry],
+    tested: impl Fn(u32) -> bool,
+) -> Vec<usize> {
+    let last = sorted.len() - 1;
+    let mut crowded = vec![0; slots.len()];
+    let mut count = 0;
+    for j in slots {
+        let key = key_of(sorted[j]);
+        let before = (j > 0) & (key_of(sorted[j.saturating_sub(1)]) == key);
+        let after = (j < last) & (key_of(sorted[(j + 1).min(last)]) == key);
+        crowded[count] = j;
+        count += usize::from((before | after) & tested(vertex_of(sorted[j])));
+    }
+    crowded.truncate(count);
+    crowded
 }
 
 /// Resolves self-collisions in place: `K` passes, each moving the `positions` of vertices
@@ -507,7 +525,7 @@ impl Resolver {
         let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
         let keys = GridKeys::with_bits((self.local_key_bits)(vertices.len()), config, k);
         let sorted = sorted_for_grid(&mut self.binning, positions, &keys);
-        let culling = &self.culling;
+        let suspects = self.nearby.suspects();
         let pass = Pass {
             keys: &keys,
             positions,
@@ -518,7 +536,7 @@ impl Resolver {
         pass.moves(
             sorted,
             |slot| vertices[slot as usize],
-            |slot| culling.is_suspect(vertices[slot as usize]),
+            |slot| suspects[slot as usize],
         )
     }
 
@@ -605,9 +623,7 @@ impl Pass<'_> {
             .flat_map_iter(|task| {
                 let slots = task * task_len..((task + 1) * task_len).min(sorted.len());
                 // Checked before touching the vertex: its data sits at a random address.
-                let crowded: Vec<usize> = slots
-                    .filter(|&j| !alone(j, sorted) && tested(vertex_of(sorted[j])))
-                    .collect();
+                let crowded = crowded_slots(slots, sorted, &tested);
                 let mut moves = Vec::new();
                 for (i, &j) in crowded.iter().enumerate() {
                     // A crowded slot's window holds only crowded slots, so fetching each

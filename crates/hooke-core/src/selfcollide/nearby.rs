@@ -21,6 +21,10 @@ pub(super) struct Nearby {
     vertices: Vec<u32>,
     /// Their positions, moved by the step's passes so far.
     positions: Vec<Vec3>,
+    /// Whether each is a suspect of the culling, whose window a pass tests: a flag beside
+    /// the vertex, where the culling's is two loads away at random addresses (its patch,
+    /// then the patch's flag), which took a third of the window tests' time.
+    suspects: Vec<bool>,
     /// The positions before the last [`Nearby::gather`], kept for the next.
     earlier_positions: Vec<Vec3>,
     /// Each mesh vertex's index in `vertices`, `u32::MAX` for the others.
@@ -59,6 +63,7 @@ impl Nearby {
         }
         self.vertices.clear();
         self.positions.clear();
+        self.suspects.clear();
         self.covered_list.clear();
         self.suspects_covered = 0;
         self.pending.clear();
@@ -78,7 +83,8 @@ impl Nearby {
         let reach = cell_size * 1.001;
         let mut added = Vec::new();
         let mut add = |p: u32| added.push(p);
-        for &p in &culling.suspect_patches()[self.suspects_covered..] {
+        let new_suspects = &culling.suspect_patches()[self.suspects_covered..];
+        for &p in new_suspects {
             let (low, high) = culling.box_of(p);
             culling.patches_near(low, high, reach + culling.margin(), &mut add);
         }
@@ -98,6 +104,13 @@ impl Nearby {
         }
         if self.covered_list.len() > before {
             self.gather(culling, points, before);
+        }
+        // A patch made suspect since it was covered (every suspect is covered by now: the
+        // patches near its box include itself).
+        for &p in new_suspects {
+            for &v in culling.members_of(p) {
+                self.suspects[self.slots[v as usize] as usize] = true;
+            }
         }
     }
 
@@ -126,6 +139,8 @@ impl Nearby {
         self.vertices.resize(total as usize, 0);
         self.positions.clear();
         self.positions.resize(total as usize, Vec3::ZERO);
+        self.suspects.clear();
+        self.suspects.resize(total as usize, false);
         let mut frame = [[0f32; PATCH]; 3];
         for (i, &p) in self.covered_list.iter().enumerate() {
             let members = culling.members_of(p);
@@ -133,9 +148,11 @@ impl Nearby {
                 let [x, y, z] = &mut frame;
                 points.gather_into(culling.places_of(p), [x, y, z]);
             }
+            let suspect = culling.is_suspect_patch(p);
             for (k, &v) in members.iter().enumerate() {
                 let slot = rank(v);
                 self.vertices[slot] = v;
+                self.suspects[slot] = suspect;
                 self.positions[slot] = if i >= first_new {
                     Vec3::new(frame[0][k], frame[1][k], frame[2][k])
                 } else {
@@ -157,6 +174,11 @@ impl Nearby {
     /// Their positions, in the same order.
     pub fn positions(&self) -> &[Vec3] {
         &self.positions
+    }
+
+    /// Whether each is one of the culling's suspects, in the same order.
+    pub fn suspects(&self) -> &[bool] {
+        &self.suspects
     }
 
     /// Moves the vertices of `moves` (every one of them covered).
@@ -207,8 +229,14 @@ mod tests {
         nearby.cover(culling, positions, config.cell_size as f32);
         let covered: HashSet<u32> = nearby.vertices().iter().copied().collect();
         assert!(nearby.vertices().is_sorted());
-        for (&v, &x) in nearby.vertices().iter().zip(nearby.positions()) {
+        for ((&v, &x), &suspect) in nearby
+            .vertices()
+            .iter()
+            .zip(nearby.positions())
+            .zip(nearby.suspects())
+        {
             assert_eq!(x, positions[v as usize]);
+            assert_eq!(suspect, culling.is_suspect(v), "vertex {v}");
         }
         let mut beyond_suspects = 0;
         for k in 0..config.grids {
