@@ -35,6 +35,13 @@ pub fn vertex_of(entry: Entry) -> u32 {
 /// counters cost 16 histograms on 16 threads, and the contact step slower than on 8.)
 const ENTRIES_PER_COUNTER: usize = 4;
 
+/// Entries a chunk needs before splitting pays at all: a sort's four parallel loops hand
+/// the other threads their chunks four times, and a local pass's sort of 4,000-12,000 entries
+/// (256 counters) took longer on this project's 2-vCPU Intel VM in two chunks than in one:
+/// 0.22-0.23 against 0.10 ms a step's four sorts at 256^2 in contact, 0.45 against 0.35 at
+/// 512^2 (2026-11-28, throwaway timers, medians of 12 windows of 100 steps).
+const MIN_CHUNK: usize = 16_384;
+
 /// Widest digit: 4096 counters per chunk stay in the first-level cache.
 const MAX_DIGIT_BITS: u32 = 12;
 
@@ -59,11 +66,11 @@ struct Chunks {
 }
 
 impl Chunks {
-    /// At most one chunk per thread, each of at least [`ENTRIES_PER_COUNTER`] entries per one
-    /// of the digit's `buckets`.
+    /// At most one chunk per thread, each of at least [`MIN_CHUNK`] entries and
+    /// [`ENTRIES_PER_COUNTER`] entries per one of the digit's `buckets`.
     fn new(n: usize, buckets: usize) -> Self {
-        let wanted =
-            (n / (ENTRIES_PER_COUNTER * buckets)).clamp(1, rayon::current_num_threads().max(1));
+        let least = (ENTRIES_PER_COUNTER * buckets).max(MIN_CHUNK);
+        let wanted = (n / least).clamp(1, rayon::current_num_threads().max(1));
         let len = n.div_ceil(wanted).max(1);
         Self {
             len,
@@ -253,7 +260,7 @@ mod tests {
             (1, 8, 1 << 8),
             (1000, 8, 7),
             (5000, 16, 1 << 16),
-            (ENTRIES_PER_COUNTER * 256 * 2 + 17, 16, 300),
+            (MIN_CHUNK * 2 + 17, 16, 300),
             (100_000, 24, 1 << 24),
             (70_001, 24, 5000),
             (40_000, 32, 1 << 32),
