@@ -284,7 +284,7 @@ fn crowded_slots(
     sorted: &[Entry],
     tested: impl Fn(u32) -> bool,
 ) -> Vec<usize> {
-    let last = sorted.len() - 1;
+    let last = sorted.len().saturating_sub(1);
     let mut crowded = vec![0; slots.len()];
     let mut count = 0;
     for j in slots {
