@@ -523,124 +523,71 @@ impl Culling {
         Some(scale)
     }
 
-    /// Checks every near pair, flagging the patches of suspect ones. Returns whether any is
-    /// within the distance.
-    ///
-    /// First, in parallel, every pair's cached gap, which clears most of them, and the pairs
-    /// suspect last step measured where they are (most still are). Then the other pairs the
-    /// cache did not clear are measured again, except, once a contact has been found, those
-    /// whose patches are both flagged already: such a pair could neither add a suspect nor
-    /// change the proof (in a contact, most of them lie between patches other pairs have
-    /// flagged). What is flagged does not depend on the order of the measurements, so the
-    /// pairs passed over and the suspects are the same on any thread count.
+    /// Checks every near pair (all of them, so each keeps its cache up to date), flagging the
+    /// patches of suspect ones. Returns whether any is within the distance. Each pair renews
+    /// its own cache in parallel; only the few that found something or were measured again
+    /// come back to tell their patches.
     fn near_pairs<P: Points + ?Sized>(&mut self, check: &Check<P>) -> bool {
         let mut near = std::mem::take(&mut self.near);
         let this = &*self;
-        // The cached gaps, and the pairs suspect last step measured where they are now; what
-        // comes back is what they found, or `None` for a pair to measure again.
-        let news: Vec<(u32, Option<Found>)> = near
+        let news: Vec<([u32; 2], Found, Option<f32>)> = near
             .par_iter_mut()
-            .enumerate()
-            .filter_map(|(i, pair)| {
-                let found = if this.cached_clear(pair, check) {
-                    Found::default()
-                } else if pair.suspect {
-                    this.in_contact_again(pair, check)
-                } else {
-                    return Some((i as u32, None));
-                };
+            .filter_map(|pair| {
+                let (found, measured) = this.near_pair(pair, check);
                 pair.suspect = found.suspect;
-                (found != Found::default()).then_some((i as u32, Some(found)))
+                if let Some(gap) = measured {
+                    let [p, q] = pair.patches;
+                    let (a, b) = (&this.patches[p as usize], &this.patches[q as usize]);
+                    pair.gap = gap;
+                    pair.offset = a.moved() - b.moved();
+                    pair.renewed = [a.renewed, b.renewed];
+                }
+                (found != Found::default() || measured.is_some()).then_some((
+                    pair.patches,
+                    found,
+                    measured,
+                ))
             })
             .collect();
-        let mut contact = false;
-        let mut others = Vec::new();
-        for (i, found) in news {
-            match found {
-                Some(found) => {
-                    contact |= found.contact;
-                    self.flag(near[i as usize].patches, found);
-                }
-                None => others.push(i),
-            }
-        }
-        // The rest, measured again unless their patches are both flagged already.
-        let others = self.unflagged(&near, others, contact);
-        let this = &*self;
-        let news: Vec<(Found, f32)> = others
-            .par_iter()
-            .map(|&i| this.measured_again(&near[i as usize], check))
-            .collect();
-        for (&i, (found, gap)) in others.iter().zip(news) {
-            let pair = &mut near[i as usize];
-            let [p, q] = pair.patches;
-            let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
-            pair.gap = gap;
-            pair.offset = a.moved() - b.moved();
-            pair.renewed = [a.renewed, b.renewed];
-            pair.suspect = found.suspect;
-            contact |= found.contact;
-            self.flag(pair.patches, found);
-            for patch in pair.patches {
-                let patch = &mut self.patches[patch as usize];
-                patch.closest = patch.closest.min(gap);
-            }
-        }
         self.near = near;
+        let mut contact = false;
+        for (patches, found, measured) in news {
+            contact |= found.contact;
+            for patch in patches {
+                if found.suspect {
+                    self.suspect_patches[patch as usize] = true;
+                }
+                if let Some(gap) = measured {
+                    let patch = &mut self.patches[patch as usize];
+                    patch.closest = patch.closest.min(gap);
+                }
+            }
+        }
         contact
     }
 
-    /// `pairs` (indices of near pairs), less those whose patches are both flagged when
-    /// `contact` has been found.
-    fn unflagged(&self, near: &[NearPair], pairs: Vec<u32>, contact: bool) -> Vec<u32> {
-        if !contact {
-            return pairs;
-        }
-        pairs
-            .into_iter()
-            .filter(|&i| {
-                let [p, q] = near[i as usize].patches;
-                !(self.suspect_patches[p as usize] && self.suspect_patches[q as usize])
-            })
-            .collect()
-    }
-
-    /// Flags the patches of a suspect pair.
-    fn flag(&mut self, patches: [u32; 2], found: Found) {
-        if found.suspect {
-            for patch in patches {
-                self.suspect_patches[patch as usize] = true;
-            }
-        }
-    }
-
-    /// Whether a near pair's cached gap, less what renewals since (their spreads) and the
-    /// patches' drift towards each other may have taken off it, still clears it.
-    fn cached_clear<P: ?Sized>(&self, pair: &NearPair, check: &Check<P>) -> bool {
-        let [p, q] = pair.patches;
-        let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
-        let drift = (a.moved() - b.moved() - pair.offset).length();
-        let renewed = (a.renewed - pair.renewed[0]) + (b.renewed - pair.renewed[1]);
-        let spreads = f64::from(a.spread) + f64::from(b.spread);
-        f64::from(pair.gap) - renewed - drift - spreads >= f64::from(check.suspect_at)
-    }
-
-    /// What a pair suspect last step shows now, measured where its vertices are (its gap
-    /// on the placed references would most likely fail again).
-    fn in_contact_again<P: Points + ?Sized>(&self, pair: &NearPair, check: &Check<P>) -> Found {
-        let current = |patch: u32| self.current(check.points, patch);
-        let closest = self.closest_unjoined(pair.patches, current, check.clear_at);
-        Found::at(closest, check)
-    }
-
-    /// What a pair the cache did not clear shows, and its gap measured again.
-    fn measured_again<P: Points + ?Sized>(
+    /// What one near pair shows, and its gap if it had to be measured again.
+    fn near_pair<P: Points + ?Sized>(
         &self,
         pair: &NearPair,
         check: &Check<P>,
-    ) -> (Found, f32) {
+    ) -> (Found, Option<f32>) {
         let [p, q] = pair.patches;
         let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
+        // The cached gap, less what renewals since (their spreads) and the patches' drift
+        // towards each other may have taken off it.
+        let drift = (a.moved() - b.moved() - pair.offset).length();
+        let renewed = (a.renewed - pair.renewed[0]) + (b.renewed - pair.renewed[1]);
+        let spreads = f64::from(a.spread) + f64::from(b.spread);
+        if f64::from(pair.gap) - renewed - drift - spreads >= f64::from(check.suspect_at) {
+            return (Found::default(), None);
+        }
+        let current = |patch: u32| self.current(check.points, patch);
+        if pair.suspect {
+            // In contact last step: the placed gap would most likely fail again.
+            let closest = self.closest_unjoined([p, q], current, check.clear_at);
+            return (Found::at(closest, check), None);
+        }
         let placed = |patch: u32| {
             let mut frame = self.references[patch as usize];
             let centre = self.patches[patch as usize].centre.to_array();
@@ -651,16 +598,15 @@ impl Culling {
         };
         let gap = self.closest_unjoined([p, q], placed, 0.0);
         if gap - a.spread - b.spread >= check.suspect_at {
-            return (Found::default(), gap);
+            return (Found::default(), Some(gap));
         }
         // Both on their references (just renewed, say): the gap is the current distance.
         let still = |patch: &Patch| patch.spread == 0.0 && patch.centre == Vec3::ZERO;
         if still(a) && still(b) {
-            return (Found::at(gap, check), gap);
+            return (Found::at(gap, check), Some(gap));
         }
-        let current = |patch: u32| self.current(check.points, patch);
         let closest = self.closest_unjoined([p, q], current, check.clear_at);
-        (Found::at(closest, check), gap)
+        (Found::at(closest, check), Some(gap))
     }
 
     /// The suspect pairs of patches that are not near, with what each shows.
