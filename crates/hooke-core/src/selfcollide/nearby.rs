@@ -103,13 +103,15 @@ impl Nearby {
             }
         }
         if self.covered_list.len() > before {
+            // Lists every covered vertex again, each with its patch's flag as it is now.
             self.gather(culling, points, before);
-        }
-        // A patch made suspect since it was covered (every suspect is covered by now: the
-        // patches near its box include itself).
-        for &p in new_suspects {
-            for &v in culling.members_of(p) {
-                self.suspects[self.slots[v as usize] as usize] = true;
+        } else {
+            // Only patches made suspect since they were covered (every suspect is covered by
+            // now: the patches near its box include itself) have flags to set.
+            for &p in new_suspects {
+                for &v in culling.members_of(p) {
+                    self.suspects[self.slots[v as usize] as usize] = true;
+                }
             }
         }
     }
