@@ -22,7 +22,7 @@ use crate::layout::{LANES, Slices};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
 pub use crate::simd::{Block, Point};
-use crate::simd::{Portable, Simd};
+use crate::simd::{POINT_BYTES, Portable, Simd, point_at_slot, point_slot};
 pub use crate::view::Positions;
 use crate::view::{Floats, Points};
 
@@ -83,8 +83,8 @@ impl Stiffness {
 /// cuts the index stream of a grid from 32 to 5 bytes per row.
 ///
 /// When most rows load lane by lane (an irregular mesh's), every row is stored whole instead,
-/// row by row, each entry as the byte offset of its point (the index times 16, flags kept):
-/// the kernels then read row after row with no lookup, no branch and no shift per lane, which
+/// row by row, each entry as the byte offset of its point (its [`point_slot`] times 16, flags
+/// kept): the kernels then read row after row with no lookup, no branch and no shift per lane, which
 /// took the irregular bench mesh's steps from 0.24 to 0.22 ms (gather) and from 0.37 to 0.29
 /// ms (scatter; see the README).
 #[derive(Clone, Debug, Default)]
@@ -98,9 +98,6 @@ pub struct IndexRows {
     point_offsets: bool,
     mask: u32,
 }
-
-/// Bytes of a [`Point`]: an index times this is its point's byte offset.
-const POINT_BYTES: u32 = std::mem::size_of::<Point>() as u32;
 
 impl IndexRows {
     /// Flags rows whose masked indices run consecutively and stay below `limit`. With
@@ -125,7 +122,7 @@ impl IndexRows {
         };
         let offsets_fit = limit as u64 * u64::from(POINT_BYTES) <= u64::from(mask) + 1;
         if points && table.mostly_gathered() && offsets_fit {
-            let offset = |entry: u32| ((entry & mask) * POINT_BYTES) | (entry & !mask);
+            let offset = |entry: u32| (point_slot(entry & mask) * POINT_BYTES) | (entry & !mask);
             table.gathered = rows.into_iter().map(|r| r.map(offset)).collect();
             table.point_offsets = true;
             return table;
@@ -153,7 +150,8 @@ impl IndexRows {
     pub fn row(&self, row: usize) -> [u32; LANES] {
         if self.point_offsets {
             let mask = self.mask;
-            return self.gathered[row].map(|e| ((e & mask) / POINT_BYTES) | (e & !mask));
+            return self.gathered[row]
+                .map(|e| point_at_slot((e & mask) / POINT_BYTES) | (e & !mask));
         }
         let head = self.head[row];
         if self.contiguous[row] {

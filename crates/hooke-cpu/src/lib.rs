@@ -43,6 +43,7 @@ use kernels::{
 };
 use lanes::Lanes;
 use layout::{LANES, Numbering, VertexOrder};
+use simd::point_slot;
 use tables::{build_topology, into_blocks, stiffness_entries};
 use view::Positions;
 
@@ -654,8 +655,8 @@ impl CpuSolver {
                 .par_iter_mut()
                 .zip(xs.par_iter().zip(ys.par_iter()).zip(zs.par_iter()))
                 .for_each(|(points, ((x, y), z))| {
-                    for (lane, point) in points.iter_mut().enumerate() {
-                        *point = [x[lane], y[lane], z[lane], 0.0];
+                    for lane in 0..LANES {
+                        points[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], 0.0];
                     }
                 });
             self.points_fresh = true;

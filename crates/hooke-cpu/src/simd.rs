@@ -12,6 +12,24 @@ pub type Block = [f32; LANES];
 /// A vector quantity as 16 bytes (x, y, z and a zero), so one load fetches all of it.
 pub type Point = [f32; 4];
 
+/// Where point `index` is stored. Each group of 8 points (a slice's, or a row of springs')
+/// holds lanes `k` and `k + 4` side by side, in the order 0, 4, 1, 5, 2, 6, 3, 7: that is the
+/// order in which AVX2's in-lane transposes leave them, so [`Simd::store_points`] stores each
+/// register as it comes, without a cross-lane permute (4 of its 12 shuffles, on the one port
+/// that takes them).
+#[inline(always)]
+pub const fn point_slot(index: u32) -> u32 {
+    (index & !7) | ((index & 3) << 1) | ((index >> 2) & 1)
+}
+
+/// The point whose [`point_slot`] is `slot`.
+pub const fn point_at_slot(slot: u32) -> u32 {
+    (slot & !7) | ((slot >> 1) & 3) | ((slot & 1) << 2)
+}
+
+/// Bytes of a [`Point`]: a slot times this is its byte offset.
+pub const POINT_BYTES: u32 = std::mem::size_of::<Point>() as u32;
+
 /// 8-lane float operations. A value of the implementing type is proof the CPU can run them.
 pub trait Simd: Copy {
     type V: Copy;
@@ -25,34 +43,37 @@ pub trait Simd: Copy {
     /// Every masked index must be below the number of readable floats at `values`, and no
     /// thread may write the floats read during the call.
     unsafe fn gather(self, values: *const f32, index: &[u32; LANES], mask: u32) -> Self::V;
-    /// `points[index[lane] & mask]` per lane, as its x, y and z (the fourth word is ignored).
+    /// Point `index[lane] & mask` (stored at its [`point_slot`]) per lane, as its x, y and z
+    /// (the fourth word is ignored).
     ///
     /// # Safety
     /// As for [`Simd::gather`], in points.
+    #[inline(always)]
     unsafe fn gather_points(
         self,
         points: *const Point,
         index: &[u32; LANES],
         mask: u32,
-    ) -> [Self::V; 3];
-    /// The points at byte offsets `offsets[lane] & mask` from `points`, as x, y and z: as
-    /// [`Simd::gather_points`] with the indices already times 16, which saves a shift a lane.
+    ) -> [Self::V; 3] {
+        let offsets = index.map(|entry| point_slot(entry & mask) * POINT_BYTES);
+        // SAFETY: the caller guarantees every masked index is a point in bounds, and a slot
+        // is in the same group of 8 as its index.
+        unsafe { self.gather_points_at(points, &offsets, u32::MAX) }
+    }
+    /// The points at byte offsets `offsets[lane] & mask` from `points`, as x, y and z: slots
+    /// already times 16 (see [`point_slot`]), which saves the arithmetic a lane.
     ///
     /// # Safety
     /// Every masked offset must be a multiple of 16 below the readable bytes at `points`, and
     /// no thread may write the points read during the call.
-    #[inline(always)]
     unsafe fn gather_points_at(
         self,
         points: *const Point,
         offsets: &[u32; LANES],
         mask: u32,
-    ) -> [Self::V; 3] {
-        let index = offsets.map(|offset| (offset & mask) / std::mem::size_of::<Point>() as u32);
-        // SAFETY: the caller guarantees every masked offset is a point in bounds.
-        unsafe { self.gather_points(points, &index, u32::MAX) }
-    }
-    /// Stores lane `k` of `x`, `y` and `z` as `out[k]`, its fourth word zero.
+    ) -> [Self::V; 3];
+    /// Stores lane `k` of `x`, `y` and `z` as point `k` of `out` (at its [`point_slot`]), its
+    /// fourth word zero.
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
     fn sub(self, a: Self::V, b: Self::V) -> Self::V;
@@ -95,20 +116,22 @@ impl Simd for Portable {
         std::array::from_fn(|lane| unsafe { *values.add((index[lane] & mask) as usize) })
     }
     #[inline(always)]
-    unsafe fn gather_points(
+    unsafe fn gather_points_at(
         self,
         points: *const Point,
-        index: &[u32; LANES],
+        offsets: &[u32; LANES],
         mask: u32,
     ) -> [Block; 3] {
-        // SAFETY: the caller guarantees every masked index is in bounds and not written.
-        let at = |lane: usize| unsafe { *points.add((index[lane] & mask) as usize) };
+        // SAFETY: the caller guarantees every masked offset is a point in bounds and not
+        // written.
+        let at =
+            |lane: usize| unsafe { *points.add(((offsets[lane] & mask) / POINT_BYTES) as usize) };
         std::array::from_fn(|axis| std::array::from_fn(|lane| at(lane)[axis]))
     }
     #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
-        for (lane, point) in out.iter_mut().enumerate() {
-            *point = [x[lane], y[lane], z[lane], 0.0];
+        for lane in 0..LANES {
+            out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], 0.0];
         }
     }
     #[inline(always)]
@@ -267,17 +290,6 @@ mod avx2 {
             }
         }
         #[inline(always)]
-        unsafe fn gather_points(
-            self,
-            points: *const Point,
-            index: &[u32; LANES],
-            mask: u32,
-        ) -> [__m256; 3] {
-            // SAFETY: the caller guarantees every masked index is in bounds, and each point is
-            // 16 readable bytes.
-            unsafe { transpose_points(|lane| points.add((index[lane] & mask) as usize)) }
-        }
-        #[inline(always)]
         unsafe fn gather_points_at(
             self,
             points: *const Point,
@@ -302,8 +314,8 @@ mod avx2 {
         #[inline(always)]
         fn store_points(self, [x, y, z]: [__m256; 3], out: &mut [Point; LANES]) {
             unsafe {
-                // The transpose of `gather_points`: points (k, k + 4) in each register, then
-                // two points to a 32-byte store.
+                // The transpose of `gather_points`: points (k, k + 4) in each register, which
+                // `point_slot` stores side by side: one 32-byte store each.
                 let zero = _mm256_setzero_ps();
                 let xy01 = _mm256_unpacklo_ps(x, y);
                 let xy23 = _mm256_unpackhi_ps(x, y);
@@ -314,10 +326,10 @@ mod avx2 {
                 let p26 = _mm256_shuffle_ps::<0x44>(xy23, zw23);
                 let p37 = _mm256_shuffle_ps::<0xEE>(xy23, zw23);
                 let base = out.as_mut_ptr().cast::<f32>();
-                _mm256_storeu_ps(base, _mm256_permute2f128_ps::<0x20>(p04, p15));
-                _mm256_storeu_ps(base.add(8), _mm256_permute2f128_ps::<0x20>(p26, p37));
-                _mm256_storeu_ps(base.add(16), _mm256_permute2f128_ps::<0x31>(p04, p15));
-                _mm256_storeu_ps(base.add(24), _mm256_permute2f128_ps::<0x31>(p26, p37));
+                _mm256_storeu_ps(base, p04);
+                _mm256_storeu_ps(base.add(8), p15);
+                _mm256_storeu_ps(base.add(16), p26);
+                _mm256_storeu_ps(base.add(24), p37);
             }
         }
         #[inline(always)]
@@ -419,10 +431,16 @@ mod tests {
         Portable.store_points(portable, &mut from_portable);
         avx2.store_points(vector, &mut from_vector);
         assert_eq!(from_portable, from_vector);
-        // Stored points hold what was gathered, in order, with a zero fourth word.
-        for (lane, point) in from_portable.iter().enumerate() {
-            let source = points[(index[lane] & !0x8000_0000) as usize];
-            assert_eq!(point, &[source[0], source[1], source[2], 0.0]);
+        // Point `k` is read from and stored at its slot, with a zero fourth word: stored
+        // points hold what was gathered.
+        for lane in 0..LANES {
+            let source = points[point_slot(index[lane] & !0x8000_0000) as usize];
+            let point = from_portable[point_slot(lane as u32) as usize];
+            assert_eq!(point, [source[0], source[1], source[2], 0.0]);
+        }
+        for index in 0..64 {
+            assert_eq!(point_at_slot(point_slot(index)), index);
+            assert_eq!(point_slot(index) / 8, index / 8);
         }
         let values: Vec<f32> = (0..40).map(|i| i as f32 * 0.5).collect();
         let index = [3, 39, 0, 7 | 0x8000_0000, 12, 12, 1, 30];

@@ -238,6 +238,7 @@ mod tests {
 
     use super::*;
     use crate::layout::VertexOrder;
+    use crate::simd::point_slot;
 
     fn topology_of(mesh: MeshSection, vertices: u32, method: Method) -> Topology {
         let scene = benchmark_scene(mesh, vertices);
@@ -343,7 +344,7 @@ mod tests {
             for (row, offsets) in offsets.iter().enumerate() {
                 let entries = rows.row(row);
                 for (offset, entry) in offsets.iter().zip(entries) {
-                    assert_eq!(offset & mask, (entry & mask) * 16);
+                    assert_eq!(offset & mask, point_slot(entry & mask) * 16);
                     assert_eq!(offset & !mask, entry & !mask);
                     assert!(((entry & mask) as usize) < limit);
                     flagged += usize::from(entry & !mask != 0);
