@@ -43,7 +43,7 @@ use kernels::{
 };
 use lanes::Lanes;
 use layout::{LANES, Numbering, VertexOrder};
-use simd::point_slot;
+use simd::{Portable, Simd};
 use tables::{build_topology, into_blocks, stiffness_entries};
 use view::Positions;
 
@@ -655,9 +655,7 @@ impl CpuSolver {
                 .par_iter_mut()
                 .zip(xs.par_iter().zip(ys.par_iter()).zip(zs.par_iter()))
                 .for_each(|(points, ((x, y), z))| {
-                    for lane in 0..LANES {
-                        points[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], 0.0];
-                    }
+                    Portable.store_points([*x, *y, *z], points);
                 });
             self.points_fresh = true;
         }
