@@ -9,10 +9,9 @@
 //! of threads, and gives each chunk output ranges of its own to write. (`radsort`, used before,
 //! runs on one thread, and sorting took half of the self-collision time at 512^2.)
 
-use std::marker::PhantomData;
-
 use rayon::prelude::*;
 
+use super::disjoint::Disjoint;
 use super::wide::wide;
 
 /// A vertex in sorted order: its key in the high 32 bits, its index in the low 32.
@@ -212,56 +211,24 @@ fn scatter(
             next += count;
         }
     }
-    let output = Slots::new(output);
+    let output = Disjoint::new(output);
     input
         .par_chunks(chunks.len)
         .zip(counts.par_chunks_mut(buckets))
         .for_each(|(entries, slots)| {
             // Locals, not the closure's captures (see `key_chunk`).
-            let (shift, mask, output) = (shift, mask, output.clone());
+            let (shift, mask, output) = (shift, mask, output);
             for &entry in entries {
                 let slot = &mut slots[digit(key_of(entry), shift, mask)];
-                output.write(*slot as usize, entry);
+                // SAFETY: the slots computed above give every chunk disjoint ranges of
+                // `output`, one per digit, each as long as the chunk's count of that digit.
+                #[allow(unsafe_code)]
+                unsafe {
+                    output.write(*slot as usize, entry)
+                };
                 *slot += 1;
             }
         });
-}
-
-/// An output buffer that the chunks of [`scatter`] write into at once, each to slots of its
-/// own. (Handing each chunk its ranges as `&mut` slices, as before, cost a 16-byte slice
-/// update per entry in a table four times the size of the first-level cache: two thirds of the
-/// sort's time.)
-#[derive(Clone)]
-struct Slots<'a> {
-    start: *mut Entry,
-    len: usize,
-    buffer: PhantomData<&'a mut [Entry]>,
-}
-
-// SAFETY: `scatter` gives every chunk disjoint slots (one histogram count each), so no two
-// threads write the same element, and nothing reads the buffer until they have all finished.
-#[allow(unsafe_code)]
-unsafe impl Sync for Slots<'_> {}
-
-impl<'a> Slots<'a> {
-    fn new(output: &'a mut [Entry]) -> Self {
-        Self {
-            start: output.as_mut_ptr(),
-            len: output.len(),
-            buffer: PhantomData,
-        }
-    }
-
-    /// Writes `entry` at `slot` (checked against the length: a wrong count panics rather than
-    /// writing out of bounds).
-    #[inline(always)]
-    #[allow(unsafe_code)]
-    fn write(&self, slot: usize, entry: Entry) {
-        assert!(slot < self.len, "radix slot {slot} of {}", self.len);
-        // SAFETY: in bounds (checked above), the buffer is borrowed mutably for as long as
-        // `self` lives, and no other thread writes this slot (see `Sync` above).
-        unsafe { self.start.add(slot).write(entry) };
-    }
 }
 
 #[cfg(test)]

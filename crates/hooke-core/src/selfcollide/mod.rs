@@ -22,6 +22,7 @@
 mod awake;
 mod binning;
 mod culling;
+mod disjoint;
 mod nearby;
 mod points;
 mod wide;
