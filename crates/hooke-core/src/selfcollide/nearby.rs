@@ -185,19 +185,20 @@ impl Nearby {
                     }
                 },
             );
+        debug_assert!(self.vertices.is_sorted_by(|a, b| a < b));
         let slots = Disjoint::new(&mut self.slots);
         self.vertices
             .par_iter()
             .enumerate()
             .with_min_len(4096)
             .for_each(|(slot, &v)| {
-                // SAFETY: the vertices are distinct (ascending, checked in debug builds).
+                // SAFETY: the vertices are distinct: each marked vertex was written once, at
+                // its own rank (above).
                 #[allow(unsafe_code)]
                 unsafe {
                     slots.write(v as usize, slot as u32)
                 };
             });
-        debug_assert!(self.vertices.is_sorted_by(|a, b| a < b));
     }
 
     /// The vertices, ascending.
