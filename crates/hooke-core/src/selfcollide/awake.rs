@@ -45,10 +45,7 @@ mod tests {
     #[test]
     fn runs_the_work_once_and_its_parallel_passes_in_full_on_any_pool_size() {
         for threads in [1, 2, 4] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("pool");
+            let pool = crate::selfcollide::pool_of(threads);
             let runs = std::sync::atomic::AtomicUsize::new(0);
             let sums: Vec<u64> = pool.install(|| {
                 with_pool_awake(|| {

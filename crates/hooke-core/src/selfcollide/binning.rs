@@ -269,10 +269,7 @@ mod tests {
             .map(|v| v.wrapping_mul(2_654_435_761) >> 12)
             .collect();
         let sort_on = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("pool");
+            let pool = crate::selfcollide::pool_of(threads);
             pool.install(|| Binning::default().sort_keys(&keys, 20).to_vec())
         };
         let one = sort_on(1);

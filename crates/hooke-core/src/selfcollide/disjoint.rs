@@ -8,21 +8,13 @@
 use std::marker::PhantomData;
 
 /// Writes into a mutably borrowed slice of plain values (nothing to drop) from many threads;
-/// see [`Disjoint::write`] for the one rule that makes it sound.
+/// see [`Disjoint::write`] for the one rule that makes it sound. A copy is the same writer.
+#[derive(Clone, Copy)]
 pub struct Disjoint<'a, T> {
     start: *mut T,
     len: usize,
     buffer: PhantomData<&'a mut [T]>,
 }
-
-// Manual, so that copying the writer does not ask `T: Copy`: it copies a pointer.
-impl<T> Clone for Disjoint<'_, T> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-
-impl<T> Copy for Disjoint<'_, T> {}
 
 // SAFETY: the writer only hands values of `T` to other threads' slots (hence `T: Send`), and
 // only through `write`, whose callers promise that no two threads touch one element.

@@ -798,6 +798,15 @@ pub fn missed_share(exact: &[(u32, u32)], found: &[(u32, u32)]) -> f64 {
     missed as f64 / exact.len() as f64
 }
 
+/// A pool of `threads` threads, for the tests that run the same work on several pool sizes.
+#[cfg(test)]
+fn pool_of(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("pool")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -347,10 +347,7 @@ mod tests {
         let positions = folding_sheet(side, SPACING, 78, 80, &mut rng);
         let lift = Vec3::new(0.0, 0.1 * SPACING, 0.0);
         let list_on = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("pool");
+            let pool = crate::selfcollide::pool_of(threads);
             pool.install(|| {
                 let (mut culling, mut nearby) = (Culling::default(), Nearby::default());
                 let proof = culling.prove(&positions[..], &adjacency, config.distance as f32);
