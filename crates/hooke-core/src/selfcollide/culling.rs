@@ -146,7 +146,7 @@ pub struct Culling {
     /// Where each patch's 8 rows start, if its members fill 8 of the owner's blocks
     /// ([`Points::lanes`]): the patch is then measured from where they lie. Kept apart from
     /// `places`, which the measurement would otherwise read in full for these 8 numbers (256
-    /// bytes a patch, a third as many as its points; at 512^2 measuring took 8-10% longer).
+    /// bytes a patch, a third as many as its points; at 512^2 measuring took a tenth longer).
     blocked: Vec<Option<[u32; PATCH / LANES]>>,
     /// The patch and slot within it of each vertex.
     patch_of: Vec<u32>,
