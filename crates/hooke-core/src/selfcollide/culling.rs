@@ -147,7 +147,7 @@ pub struct Culling {
     /// ([`Points::lanes`]): the patch is then measured from where they lie. Kept apart from
     /// `places`, which the measurement would otherwise read in full for these 8 numbers (256
     /// bytes a patch, a third as many as its points; at 512^2 measuring took a tenth longer).
-    blocked: Vec<Option<[u32; PATCH / LANES]>>,
+    block_starts: Vec<Option<[u32; PATCH / LANES]>>,
     /// The patch and slot within it of each vertex.
     patch_of: Vec<u32>,
     /// Each slot of `members`' neighbours, as slots of `members` (rows of a CSR table): a
@@ -395,13 +395,13 @@ impl Culling {
             .chunks(PATCH)
             .map(|places| gather(points, places))
             .collect();
-        self.blocked = self
+        self.block_starts = self
             .places
             .chunks(PATCH)
             .map(|places| {
                 let blocked = places.len() == PATCH
                     && places.chunks(LANES).all(|run| points.run(run).is_some());
-                blocked.then(|| std::array::from_fn(|r| places[r * LANES]))
+                blocked.then(|| std::array::from_fn(|row| places[row * LANES]))
             })
             .collect();
         let count = n.div_ceil(PATCH);
@@ -494,11 +494,11 @@ impl Culling {
             .par_iter_mut()
             .zip(self.references.par_iter_mut())
             .zip(self.places.par_chunks(PATCH))
-            .zip(self.blocked.par_iter())
+            .zip(self.block_starts.par_iter())
             .map_init(
                 Scratch::new,
-                |scratch, (((patch, references), places), blocked)| {
-                    let rows = match blocked.and_then(|starts| blocks_of(points, &starts)) {
+                |scratch, (((patch, references), places), starts)| {
+                    let rows = match starts.and_then(|starts| blocks_of(points, &starts)) {
                         Some(rows) => rows,
                         None => {
                             gather_into(points, places, &mut scratch.positions);
@@ -1318,10 +1318,10 @@ pub(crate) mod tests {
                 assert_eq!(moves, expected, "{name}, step {t}, blocked");
                 let (by_block, by_copy) = (blocked.culling(), resolver.culling());
                 assert!(
-                    by_block.blocked.iter().all(Option::is_some),
+                    by_block.block_starts.iter().all(Option::is_some),
                     "{name}: not blocked"
                 );
-                assert!(by_copy.blocked.iter().all(Option::is_none));
+                assert!(by_copy.block_starts.iter().all(Option::is_none));
                 // The same measurements from the blocks as from a copy of the points.
                 let state = |patch: &Patch| (patch.centre, patch.spread, patch.low, patch.high);
                 assert!(
