@@ -329,6 +329,57 @@ fn bench_prints_a_row_per_mesh_and_method() {
 }
 
 #[test]
+fn bench_says_which_rows_swept_several_steps_at_a_time() {
+    // 256^2 is the smallest grid laid out to sweep; self-collision acts between steps.
+    let args = |format: &str| {
+        hooke(&[
+            "bench",
+            "--sizes",
+            "16,256",
+            "--irregular",
+            "0",
+            "--shuffled",
+            "0",
+            "--methods",
+            "gather",
+            "--steps",
+            "10",
+            "--warmup",
+            "1",
+            "--self-collision",
+            "4",
+            "--format",
+            format,
+        ])
+    };
+    let result = args("json");
+    assert!(result.status.success(), "{}", text(&result.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let sweeps: Vec<(&str, u64)> = report["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .map(|r| {
+            let steps = r["steps_per_sweep"].as_u64().expect("a count");
+            (r["mesh"].as_str().expect("a mesh"), steps)
+        })
+        .collect();
+    assert_eq!(
+        sweeps,
+        [
+            ("grid 16^2", 1),
+            ("grid 16^2 + self-collision 4", 1),
+            ("grid 256^2", 4),
+            ("grid 256^2 + self-collision 4", 1),
+        ]
+    );
+    let table = args("table");
+    assert!(table.status.success(), "{}", text(&table.stderr));
+    let note = "sweeps: the fused step advanced up to 4 steps per sweep over memory (nothing acts between them) in: grid 256^2 gather.";
+    assert!(text(&table.stdout).lines().any(|l| l == note), "{}", text(&table.stdout));
+}
+
+#[test]
 fn bench_times_every_solver_in_each_round_and_reports_the_median_round() {
     let args = |format: &'static str| {
         hooke(&[

@@ -397,6 +397,12 @@ impl CpuSolver {
         self.colliders.is_empty() && self.model.handles.is_empty() && self.self_collision.is_none()
     }
 
+    /// Steps that `step(n)` advances per sweep over memory (see `sweep`): up to 4 on a mesh
+    /// laid out to sweep while nothing acts between its steps, else 1.
+    pub fn steps_per_sweep(&self) -> usize {
+        if self.can_sweep() { sweep::DEPTH } else { 1 }
+    }
+
     /// Bytes one fused step must read or write at least once (the memory-bandwidth floor).
     pub fn bytes_per_step(&self) -> usize {
         // Positions: read current, write next; deltas: read and write. Integration constants: read.
@@ -853,6 +859,10 @@ impl Solver for CpuSolver {
         };
         if self.numbering.valence_windows {
             order += &format!(", valence-sorted in windows of {}", layout::VALENCE_WINDOW);
+        }
+        if self.sweep_planned() {
+            // Where nothing acts between steps (see `sweep`): a figure then depends on it.
+            order += &format!(", up to {} steps per sweep", sweep::DEPTH);
         }
         format!(
             "cpu {} (f32, {} threads{order})",

@@ -254,14 +254,19 @@ impl Sweep {
 impl CpuSolver {
     /// Whether the next steps may run in one sweep (see the module docs).
     pub(crate) fn can_sweep(&self) -> bool {
-        let planned = match &self.topology {
-            Topology::Gather(_) => self.sweep.is_some(),
-            Topology::Scatter { .. } => self.blocks.as_ref().is_some_and(Blocks::sweeps),
-        };
-        planned
+        self.sweep_planned()
             && self.tears.rule().is_none()
             && self.external.is_none()
             && self.positions_final_after_integration()
+    }
+
+    /// Whether the mesh is laid out to sweep (large enough, neighbours near enough), whatever
+    /// acts between its steps.
+    pub(crate) fn sweep_planned(&self) -> bool {
+        match &self.topology {
+            Topology::Gather(_) => self.sweep.is_some(),
+            Topology::Scatter { .. } => self.blocks.as_ref().is_some_and(Blocks::sweeps),
+        }
     }
 
     /// `depth` steps (2..=[`DEPTH`]) in one sweep; the states are those of as many single
@@ -304,6 +309,7 @@ impl CpuSolver {
 
 #[cfg(test)]
 mod tests {
+    use hooke_core::Solver;
     use hooke_core::scene::{MeshSection, Scene};
     use hooke_testkit::benchmark_scene;
 
@@ -342,6 +348,12 @@ mod tests {
                     "{vertices} vertices: {plan:?}"
                 );
                 assert_eq!(swept.reads_points, reads_points);
+                assert!(swept.describe().contains("up to 4 steps per sweep"));
+                assert!(
+                    !single.describe().contains("sweep"),
+                    "{}",
+                    single.describe()
+                );
                 // Sweeps of every depth, odd ones included, and a lone step between them.
                 let what = format!("{vertices} vertices, {threads} threads");
                 single.assert_steps_alike(&mut swept, &[4, 1, 2, 3, 7, 9], &what);

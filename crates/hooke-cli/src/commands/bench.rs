@@ -148,6 +148,8 @@ struct Row {
     copy_bandwidth_gb_per_s: Option<f64>,
     bandwidth_floor_ms: Option<f64>,
     dt_above_stability_bound: bool,
+    /// CPU: the steps its fused step advanced per sweep over memory (1: one at a time).
+    steps_per_sweep: Option<usize>,
 }
 
 #[derive(Debug, Serialize)]
@@ -501,7 +503,7 @@ fn measure(
     };
     // Which phases have passes of their own: the GPU's gather integrates in its force pass,
     // and its atomic accumulations sum there; the CPU times its phases apart.
-    let (backend, method, threads, accumulates, integrates, bytes_per_step, bandwidth) =
+    let (backend, method, threads, accumulates, integrates, bytes_per_step, bandwidth, sweep) =
         match (simulation.choice(), simulation.memory()) {
             (SolverChoice::Gpu(method), MemoryReport::Gpu(memory)) => (
                 "gpu",
@@ -510,6 +512,7 @@ fn measure(
                 phases.iter().any(|p| p.force_accumulation.is_some()),
                 method != GpuMethod::Gather,
                 memory.table_1() as usize,
+                None,
                 None,
             ),
             (SolverChoice::Cpu(options), _) => {
@@ -525,6 +528,7 @@ fn measure(
                     true,
                     bytes,
                     Some(copy_bandwidth(bytes, copy_pool)),
+                    Some(solver.steps_per_sweep()),
                 )
             }
             (choice, _) => anyhow::bail!("hooke bench does not time {}", choice.name()),
@@ -556,6 +560,7 @@ fn measure(
         copy_bandwidth_gb_per_s: bandwidth.map(|b| b / 1e9),
         bandwidth_floor_ms: bandwidth.map(|b| 1e3 * bytes_per_step as f64 / b),
         dt_above_stability_bound: scene.material.dt > scene.max_stable_dt,
+        steps_per_sweep: sweep,
     })
 }
 
@@ -728,6 +733,9 @@ fn print_report(report: &Report) {
     println!(
         "total: the fused step as `hooke run` executes it; bw floor: bytes/step over measured copy bandwidth."
     );
+    if let Some(note) = sweeps_note(&report.rows) {
+        println!("{note}");
+    }
     if let Some(gpu) = report.rows.iter().find(|r| r.backend == "gpu") {
         println!(
             "gpu: phases from {}; total includes one status read-back per 10 steps; bytes/step is the GPU memory the method allocates; passes: compute dispatches and draws per step.",
@@ -742,6 +750,23 @@ fn print_report(report: &Report) {
             "*: the workload's dt exceeds hooke's conservative stability bound on this mesh (it ran stably here)."
         );
     }
+}
+
+/// Which rows' fused steps swept several steps at a time, since their totals (and any ratio
+/// to them) depend on it; `None` if none did.
+fn sweeps_note(rows: &[Row]) -> Option<String> {
+    let swept: Vec<String> = rows
+        .iter()
+        .filter(|r| r.steps_per_sweep.is_some_and(|s| s > 1))
+        .map(|r| format!("{} {}", r.mesh, r.method))
+        .collect();
+    let depth = rows.iter().filter_map(|r| r.steps_per_sweep).max()?;
+    (!swept.is_empty()).then(|| {
+        format!(
+            "sweeps: the fused step advanced up to {depth} steps per sweep over memory (nothing acts between them) in: {}.",
+            swept.join(", ")
+        )
+    })
 }
 
 /// `median` with `digits` decimals, followed by the smallest and largest of `rounds` where
@@ -818,6 +843,7 @@ mod tests {
             copy_bandwidth_gb_per_s: None,
             bandwidth_floor_ms: None,
             dt_above_stability_bound: false,
+            steps_per_sweep: Some(1),
         }
     }
 
