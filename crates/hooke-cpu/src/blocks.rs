@@ -41,13 +41,17 @@ use crate::kernels::{
     SpringForces, SpringTable, VertexChunk,
 };
 use crate::layout::LANES;
-use crate::sweep::{Buffers, DEPTH, Finite, both};
+use crate::sweep::{self, Buffers, Finite, both};
 use crate::tables::SPRING_BLOCK;
 use crate::view::{Floats, Points, Positions};
 
 /// Slices a mesh needs at least for blocks to pay: 131,072 vertices. Below that, a step's
 /// forces stay in the caches anyway.
 const MIN_SLICES: usize = 16_384;
+
+/// Steps per sweep over the blocks at most. Fewer than the gather's [`sweep::DEPTH`]: a band
+/// must be `4 DEPTH` reaches wide, and a scatter mesh of 131,072 vertices has 32 blocks.
+pub(crate) const DEPTH: usize = 4;
 
 /// Bands per thread, so a thread that finishes early takes another.
 const BANDS_PER_THREAD: usize = 4;
@@ -248,9 +252,9 @@ impl Blocks {
             };
         let bands = (0..plan.bands.len() - 1).into_par_iter().map(|b| {
             let (start, end) = (plan.bands[b], plan.bands[b + 1]);
-            let mut finite: Finite = [true; DEPTH + 1];
+            let mut finite: Finite = [true; sweep::DEPTH + 1];
             // Where step j has got to; it covers blocks [start + (j-1) r, end - (j-1) r).
-            let mut reached: [usize; DEPTH + 1] =
+            let mut reached: [usize; sweep::DEPTH + 1] =
                 std::array::from_fn(|j| start + j.saturating_sub(1) * r);
             for at in start + 1..=end {
                 for j in 1..=depth {
@@ -267,9 +271,9 @@ impl Blocks {
             }
             finite
         });
-        let inner = bands.reduce(|| [true; DEPTH + 1], both);
+        let inner = bands.reduce(|| [true; sweep::DEPTH + 1], both);
         let strips = plan.bands.par_iter().map(|&b| {
-            let mut finite: Finite = [true; DEPTH + 1];
+            let mut finite: Finite = [true; sweep::DEPTH + 1];
             for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(1) {
                 let low = b.saturating_sub((j - 1) * r);
                 let high = (b + (j - 1) * r).min(blocks);
@@ -281,7 +285,7 @@ impl Blocks {
             }
             finite
         });
-        both(inner, strips.reduce(|| [true; DEPTH + 1], both))
+        both(inner, strips.reduce(|| [true; sweep::DEPTH + 1], both))
     }
 }
 

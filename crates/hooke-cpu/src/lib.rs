@@ -397,10 +397,14 @@ impl CpuSolver {
         self.colliders.is_empty() && self.model.handles.is_empty() && self.self_collision.is_none()
     }
 
-    /// Steps that `step(n)` advances per sweep over memory (see `sweep`): up to 4 on a mesh
-    /// laid out to sweep while nothing acts between its steps, else 1.
+    /// Steps that `step(n)` advances per sweep over memory at most (see `sweep`): 2 to 6 on a
+    /// mesh laid out to sweep while nothing acts between its steps, else 1.
     pub fn steps_per_sweep(&self) -> usize {
-        if self.can_sweep() { sweep::DEPTH } else { 1 }
+        if self.can_sweep() {
+            self.sweep_depth()
+        } else {
+            1
+        }
     }
 
     /// Bytes one fused step must read or write at least once (the memory-bandwidth floor).
@@ -860,9 +864,9 @@ impl Solver for CpuSolver {
         if self.numbering.valence_windows {
             order += &format!(", valence-sorted in windows of {}", layout::VALENCE_WINDOW);
         }
-        if self.sweep_planned() {
+        if self.sweep_depth() > 1 {
             // Where nothing acts between steps (see `sweep`): a figure then depends on it.
-            order += &format!(", up to {} steps per sweep", sweep::DEPTH);
+            order += &format!(", up to {} steps per sweep", self.sweep_depth());
         }
         format!(
             "cpu {} (f32, {} threads{order})",
@@ -911,7 +915,7 @@ impl Solver for CpuSolver {
         pool.install(|| {
             let mut left = steps as usize;
             while left > 0 {
-                let depth = left.min(sweep::DEPTH);
+                let depth = left.min(self.sweep_depth());
                 if depth >= 2 && self.can_sweep() {
                     self.step_sweep(depth)?;
                     left -= depth;

@@ -4,7 +4,8 @@
 //! new position and delta. On a mesh whose working set leaves the caches, each step streams all
 //! of that from memory, and the threads share the stream: the 1024^2 grid took 5.9x the 512^2
 //! step for 4x the springs. A sweep instead advances a few slices at a time by up to
-//! [`DEPTH`] steps while they are still in the cache.
+//! [`DEPTH`] steps while they are still in the cache: as many as leave each thread a band
+//! (below).
 //!
 //! Step `j` of a sweep (1-based) reads `x(t + (j-1) dt)` and writes `x(t + j dt)` over
 //! `x(t + (j-2) dt)`: odd steps from `current` into `next`, even steps back, the two buffers a
@@ -18,8 +19,8 @@
 //! `[s + (j-1) r, e - (j-1) r)`. The only positions a thread reads outside its band are the
 //! `x(t)` within `r` of its ends, which the neighbouring band overwrites in none of its steps
 //! (its step 2 starts `r` in). When every band is done, one task per band boundary `b` runs
-//! steps `2..=DEPTH` over `[b - (j-1) r, b + (j-1) r)` in order; boundaries lie at least
-//! `2 DEPTH r` apart, so those tasks touch disjoint slices.
+//! steps `2..=depth` over `[b - (j-1) r, b + (j-1) r)` in order; boundaries lie at least
+//! `4 depth r` apart, so those tasks touch disjoint slices.
 //!
 //! Every vertex does the arithmetic of a single step on the same inputs, so the states are
 //! bit-identical (tested). Only steps where nothing acts between the spring forces and the next
@@ -38,12 +39,14 @@ use crate::layout::LANES;
 use crate::view::Positions;
 use crate::{CpuSolver, Topology};
 
-/// Steps per sweep at most. Four halve what two stream from memory again; more gained nothing
-/// measurable on the 1024^2 and 2048^2 grids (see the README).
-pub(crate) const DEPTH: usize = 4;
+/// Steps per sweep at most. Four halve what two stream from memory again; six took 1-13% off
+/// the 2048^2 grid's gather step in four pairs of runs on an Intel VM (no change beyond its
+/// noise at the other sizes), eight nothing on an AMD one (see the README). A mesh sweeps as many as leave each
+/// thread a band (see [`Sweep::of`]); scatter's blocks sweep [`crate::blocks::DEPTH`].
+pub(crate) const DEPTH: usize = 6;
 
 /// Slices that step 1 advances by at a time: 2,048 vertices, so the slices every step of the
-/// sweep is working on (`DEPTH` reaches behind) stay in a core's L2 cache on a grid up to
+/// sweep is working on (up to `DEPTH` reaches behind) stay in a core's L2 cache on a grid up to
 /// 2048^2, and each kernel call has thousands of vertices to amortise it.
 const ADVANCE: usize = 256;
 
@@ -60,12 +63,15 @@ pub(crate) struct Sweep {
     /// The furthest, in slices, that any vertex has a neighbour.
     reach: usize,
     bands: usize,
+    /// Steps per sweep at most (2..=[`DEPTH`]).
+    pub(crate) depth: usize,
 }
 
 impl Sweep {
     /// How `topology` over `slices` slices sweeps with `threads` threads, or `None` where it
-    /// would not pay or cannot: too small a mesh, neighbours too far apart for bands at least
-    /// `4 DEPTH` reaches wide, or scatter, which sweeps its blocks instead (see `blocks`).
+    /// would not pay or cannot: too small a mesh, neighbours too far apart for two bands at
+    /// least 2 steps of reach wide on several threads, or scatter, which sweeps its blocks
+    /// instead (see `blocks`).
     pub(crate) fn plan(topology: &Topology, slices: usize, threads: usize) -> Option<Self> {
         let Topology::Gather(table) = topology else {
             return None;
@@ -76,16 +82,35 @@ impl Sweep {
         Self::of(table, slices, threads)
     }
 
-    /// [`Sweep::plan`] on a mesh of any size.
+    /// [`Sweep::plan`] on a mesh of any size: the most steps per sweep that keep as many
+    /// bands, each at least 4 steps of reach wide, as two steps would. Bands are the
+    /// parallelism: a sweep on fewer bands than threads leaves threads idle (at 8 steps the
+    /// irregular bench mesh fitted one band, and its step took 0.40 ms against 0.24 at 4), so
+    /// a mesh that fits only one band on several threads does not sweep at all.
     fn of(table: &GatherTable, slices: usize, threads: usize) -> Option<Self> {
         let reach = reach(table);
-        let bands = threads.min(slices / (4 * DEPTH * reach.max(1)));
-        (bands > 0).then_some(Self { reach, bands })
+        let (bands, depth) = bands_and_depth(slices, reach, threads)?;
+        Some(Self {
+            reach,
+            bands,
+            depth,
+        })
     }
 
     fn band(&self, k: usize, slices: usize) -> Range<usize> {
         k * slices / self.bands..(k + 1) * slices / self.bands
     }
+}
+
+/// The bands and steps per sweep of [`Sweep::of`] for `slices` slices of this reach.
+fn bands_and_depth(slices: usize, reach: usize, threads: usize) -> Option<(usize, usize)> {
+    let bands = |depth: usize| threads.min(slices / (4 * depth * reach.max(1)));
+    let most = bands(2);
+    if most == 0 || (most == 1 && threads > 1) {
+        return None;
+    }
+    let depth = (2..=DEPTH).rev().find(|&d| bands(d) == most)?;
+    Some((most, depth))
 }
 
 /// The furthest, in slices, that any vertex of `table` has a neighbour.
@@ -254,25 +279,28 @@ impl Sweep {
 impl CpuSolver {
     /// Whether the next steps may run in one sweep (see the module docs).
     pub(crate) fn can_sweep(&self) -> bool {
-        self.sweep_planned()
+        self.sweep_depth() > 1
             && self.tears.rule().is_none()
             && self.external.is_none()
             && self.positions_final_after_integration()
     }
 
-    /// Whether the mesh is laid out to sweep (large enough, neighbours near enough), whatever
-    /// acts between its steps.
-    pub(crate) fn sweep_planned(&self) -> bool {
+    /// Steps per sweep at most where the mesh is laid out to sweep (large enough, neighbours
+    /// near enough), whatever acts between its steps; 1 where it is not.
+    pub(crate) fn sweep_depth(&self) -> usize {
         match &self.topology {
-            Topology::Gather(_) => self.sweep.is_some(),
-            Topology::Scatter { .. } => self.blocks.as_ref().is_some_and(Blocks::sweeps),
+            Topology::Gather(_) => self.sweep.map_or(1, |plan| plan.depth),
+            Topology::Scatter { .. } if self.blocks.as_ref().is_some_and(Blocks::sweeps) => {
+                crate::blocks::DEPTH
+            }
+            Topology::Scatter { .. } => 1,
         }
     }
 
-    /// `depth` steps (2..=[`DEPTH`]) in one sweep; the states are those of as many single
+    /// `depth` steps (2 up to the plan's depth) in one sweep; the states are those of as many single
     /// steps, and an error names the first step whose results were not all finite.
     pub(crate) fn step_sweep(&mut self, depth: usize) -> Result<(), SimError> {
-        assert!((2..=DEPTH).contains(&depth) && self.can_sweep());
+        assert!((2..=self.sweep_depth()).contains(&depth) && self.can_sweep());
         let isa = self.options.instruction_set;
         let reads_points = self.refresh_points();
         let buffers = Buffers::of(self, reads_points);
@@ -348,7 +376,8 @@ mod tests {
                     "{vertices} vertices: {plan:?}"
                 );
                 assert_eq!(swept.reads_points, reads_points);
-                assert!(swept.describe().contains("up to 4 steps per sweep"));
+                let steps = format!("up to {} steps per sweep", plan.depth);
+                assert!(swept.describe().contains(&steps), "{}", swept.describe());
                 assert!(
                     !single.describe().contains("sweep"),
                     "{}",
@@ -359,6 +388,21 @@ mod tests {
                 single.assert_steps_alike(&mut swept, &[4, 1, 2, 3, 7, 9], &what);
             }
         }
+    }
+
+    #[test]
+    fn a_mesh_sweeps_as_many_steps_as_keep_its_bands() {
+        // The 256^2 grid (reach 33) and the irregular bench mesh (157) on 2 threads: 6 steps.
+        assert_eq!(bands_and_depth(8192, 33, 2), Some((2, 6)));
+        assert_eq!(bands_and_depth(8192, 157, 2), Some((2, 6)));
+        // Reaching further, fewer steps keep two bands ...
+        assert_eq!(bands_and_depth(8192, 300, 2), Some((2, 3)));
+        // ... and many threads as many bands as two steps allow.
+        assert_eq!(bands_and_depth(8192, 33, 64), Some((31, 2)));
+        // One band: one thread sweeps, or none.
+        assert_eq!(bands_and_depth(8192, 600, 1), Some((1, 3)));
+        assert_eq!(bands_and_depth(8192, 600, 2), None);
+        assert_eq!(bands_and_depth(8192, 2000, 1), None);
     }
 
     #[test]

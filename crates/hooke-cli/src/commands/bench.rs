@@ -752,18 +752,19 @@ fn print_report(report: &Report) {
     }
 }
 
-/// Which rows' fused steps swept several steps at a time, since their totals (and any ratio
-/// to them) depend on it; `None` if none did.
+/// Which rows' fused steps swept several steps at a time, and how many at most, since their
+/// totals (and any ratio to them) depend on it; `None` if none did.
 fn sweeps_note(rows: &[Row]) -> Option<String> {
     let swept: Vec<String> = rows
         .iter()
-        .filter(|r| r.steps_per_sweep.is_some_and(|s| s > 1))
-        .map(|r| format!("{} {}", r.mesh, r.method))
+        .filter_map(|r| {
+            let steps = r.steps_per_sweep.filter(|&s| s > 1)?;
+            Some(format!("{} {} {steps}", r.mesh, r.method))
+        })
         .collect();
-    let depth = rows.iter().filter_map(|r| r.steps_per_sweep).max()?;
     (!swept.is_empty()).then(|| {
         format!(
-            "sweeps: the fused step advanced up to {depth} steps per sweep over memory (nothing acts between them) in: {}.",
+            "sweeps: steps advanced per sweep over memory at most, where nothing acts between them: {}.",
             swept.join(", ")
         )
     })
