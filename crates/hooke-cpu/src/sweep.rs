@@ -41,13 +41,14 @@ use crate::{CpuSolver, Topology};
 
 /// Steps per sweep at most. Four halve what two stream from memory again; six took 1-13% off
 /// the 2048^2 grid's gather step in four pairs of runs on an Intel VM (no change beyond its
-/// noise at the other sizes), eight nothing on an AMD one (see the README). A mesh sweeps as many as leave each
-/// thread a band (see [`Sweep::of`]); scatter's blocks sweep [`crate::blocks::DEPTH`].
+/// noise at the other sizes), eight nothing on an AMD one (see the README). A mesh sweeps as
+/// many as leave each thread a band (see [`Sweep::of`]); scatter's blocks sweep
+/// [`crate::blocks::DEPTH`].
 pub(crate) const DEPTH: usize = 6;
 
 /// Slices that step 1 advances by at a time: 2,048 vertices, so the slices every step of the
-/// sweep is working on (up to `DEPTH` reaches behind) stay in a core's L2 cache on a grid up to
-/// 2048^2, and each kernel call has thousands of vertices to amortise it.
+/// sweep is working on (up to `DEPTH` reaches behind) stay in a core's L2 cache on a grid up
+/// to 2048^2, and each kernel call has thousands of vertices to amortise it.
 const ADVANCE: usize = 256;
 
 /// Slices a mesh needs at least for a sweep to pay: 65,536 vertices. On an Intel Xeon VM with
@@ -64,13 +65,13 @@ pub(crate) struct Sweep {
     reach: usize,
     bands: usize,
     /// Steps per sweep at most (2..=[`DEPTH`]).
-    pub(crate) depth: usize,
+    depth: usize,
 }
 
 impl Sweep {
     /// How `topology` over `slices` slices sweeps with `threads` threads, or `None` where it
-    /// would not pay or cannot: too small a mesh, neighbours too far apart for two bands at
-    /// least 2 steps of reach wide on several threads, or scatter, which sweeps its blocks
+    /// would not pay or cannot: too small a mesh, neighbours too far apart for bands 8
+    /// reaches wide (two of them on several threads), or scatter, which sweeps its blocks
     /// instead (see `blocks`).
     pub(crate) fn plan(topology: &Topology, slices: usize, threads: usize) -> Option<Self> {
         let Topology::Gather(table) = topology else {
@@ -297,8 +298,8 @@ impl CpuSolver {
         }
     }
 
-    /// `depth` steps (2 up to the plan's depth) in one sweep; the states are those of as many single
-    /// steps, and an error names the first step whose results were not all finite.
+    /// `depth` steps (2 up to the plan's depth) in one sweep; the states are those of as many
+    /// single steps, and an error names the first step whose results were not all finite.
     pub(crate) fn step_sweep(&mut self, depth: usize) -> Result<(), SimError> {
         assert!((2..=self.sweep_depth()).contains(&depth) && self.can_sweep());
         let isa = self.options.instruction_set;
