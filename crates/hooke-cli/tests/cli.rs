@@ -331,30 +331,24 @@ fn bench_prints_a_row_per_mesh_and_method() {
 #[test]
 fn bench_says_which_rows_swept_several_steps_at_a_time() {
     // 256^2 is the smallest grid laid out to sweep; self-collision acts between steps.
-    let args = |format: &str| {
-        hooke(&[
-            "bench",
-            "--sizes",
-            "16,256",
-            "--irregular",
-            "0",
-            "--shuffled",
-            "0",
-            "--methods",
-            "gather",
-            "--steps",
-            "10",
-            "--warmup",
-            "1",
-            "--self-collision",
-            "4",
-            "--format",
-            format,
-        ])
-    };
-    let result = args("json");
-    assert!(result.status.success(), "{}", text(&result.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&result.stdout).expect("json");
+    let args = [
+        "bench",
+        "--sizes",
+        "16,256",
+        "--irregular",
+        "0",
+        "--shuffled",
+        "0",
+        "--methods",
+        "gather",
+        "--steps",
+        "10",
+        "--warmup",
+        "1",
+        "--self-collision",
+        "4",
+    ];
+    let report = json_report(&args);
     let sweeps: Vec<(&str, u64)> = report["rows"]
         .as_array()
         .expect("rows")
@@ -373,7 +367,7 @@ fn bench_says_which_rows_swept_several_steps_at_a_time() {
             ("grid 256^2 + self-collision 4", 1),
         ]
     );
-    let table = args("table");
+    let table = hooke(&[&args[..], &["--format", "table"]].concat());
     assert!(table.status.success(), "{}", text(&table.stderr));
     let note = "sweeps: steps advanced per sweep over memory at most, where nothing acts between them: grid 256^2 gather 6.";
     assert!(

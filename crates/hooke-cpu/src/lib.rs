@@ -864,9 +864,10 @@ impl Solver for CpuSolver {
         if self.numbering.valence_windows {
             order += &format!(", valence-sorted in windows of {}", layout::VALENCE_WINDOW);
         }
-        if self.sweep_depth() > 1 {
+        let depth = self.sweep_depth();
+        if depth > 1 {
             // Where nothing acts between steps (see `sweep`): a figure then depends on it.
-            order += &format!(", up to {} steps per sweep", self.sweep_depth());
+            order += &format!(", up to {depth} steps per sweep");
         }
         format!(
             "cpu {} (f32, {} threads{order})",
