@@ -19,6 +19,10 @@
 //! bench --self-collision K` times as well). A ratio of two medians taken in different rounds
 //! moves with the machine's speed; a ratio within a round does not, or much less.
 //!
+//! Each solver's state is checked, untimed, after the warm-up, after each round and after the
+//! phase-timed steps, as `hooke run` checks it: a row whose state has exploded is skipped, with
+//! the reason, rather than timed on numbers that no longer mean anything.
+//!
 //! The bandwidth floor is the bytes one fused step must move at least once divided by the copy
 //! bandwidth measured on the spot, with the same threads, on a buffer as large as those bytes:
 //! it is the time a perfect memory-bound step would take at the cache level where the data lives.
@@ -30,6 +34,7 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 use comfy_table::Table;
 use hooke::{EngineError, MemoryReport, Simulation, SolverChoice};
+use hooke_core::diagnostics::check_health;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
 use hooke_core::selfcollide::{self, SelfCollision};
 use hooke_core::{PhaseTimes, SimError, TimingSource};
@@ -226,7 +231,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                     return Err(error).with_context(|| format!("{name}, {}", choice.name()));
                 }
             };
-            let warmed = simulation.step(args.warmup).map_err(anyhow::Error::from);
+            let warmed = simulation
+                .step(args.warmup)
+                .and_then(|()| check_state(&simulation))
+                .map_err(anyhow::Error::from);
             let entry = Timed {
                 name: name.clone(),
                 kind,
@@ -244,7 +252,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     for _ in 0..args.rounds {
         let mut kept = Vec::with_capacity(timed.len());
         for mut entry in timed {
-            let timing = median_step_ms(&mut entry.simulation, args);
+            let timing = median_step_ms(&mut entry.simulation, args).and_then(|ms| {
+                check_state(&entry.simulation)?;
+                Ok(ms)
+            });
             if let Some(ms) = entry.keep(timing, &mut skipped)? {
                 entry.rounds_ms.push(ms);
                 kept.push(entry);
@@ -328,7 +339,8 @@ struct Timed {
 
 impl Timed {
     /// `result`'s value; `None`, noted in `skipped`, if the method's accumulation could not
-    /// hold this workload's forces (the others still run); any other failure ends the bench.
+    /// hold this workload's forces or its state exploded (the others still run); any other
+    /// failure ends the bench.
     fn keep<T>(
         &self,
         result: anyhow::Result<T>,
@@ -336,7 +348,7 @@ impl Timed {
     ) -> anyhow::Result<Option<T>> {
         match result {
             Ok(value) => Ok(Some(value)),
-            Err(error) if out_of_range(&error) => {
+            Err(error) if skips_row(&error) => {
                 let why = format!(
                     "{} {}: {error:#}",
                     self.name,
@@ -354,17 +366,32 @@ impl Timed {
 }
 
 /// True when a method failed because its accumulation's range could not hold the workload's
-/// forces (a property of the method, not a fault of the run).
-fn out_of_range(error: &anyhow::Error) -> bool {
+/// forces (a property of the method, not a fault of the run), or because its state went past
+/// the point where `hooke run` would stop (see [`check_state`]).
+fn skips_row(error: &anyhow::Error) -> bool {
+    let skips =
+        |error: &SimError| matches!(error, SimError::Overflow { .. } | SimError::Exploded { .. });
     error.chain().any(|cause| {
         matches!(
             cause.downcast_ref::<EngineError>(),
-            Some(EngineError::Simulation(SimError::Overflow { .. }))
-        ) || matches!(
-            cause.downcast_ref::<SimError>(),
-            Some(SimError::Overflow { .. })
-        )
+            Some(EngineError::Simulation(error)) if skips(error)
+        ) || cause.downcast_ref::<SimError>().is_some_and(skips)
     })
+}
+
+/// Whether a timed state still means something: `hooke run`'s check (no spring stretched past
+/// `EXPLOSION_STRETCH` rest lengths, every position finite), untimed, after the warm-up and
+/// after each round and the phase-timed steps. The workload's springs are soft for its mass
+/// (corner pins carry the whole cloth), so a long warm-up stretches the corners without end:
+/// at 512^2 past 100 rest lengths by step 1,600, where the times would be of a state no run
+/// keeps, and a self-collision step's cost depends on the state.
+fn check_state(simulation: &Simulation) -> Result<(), SimError> {
+    let state = simulation.state()?;
+    check_health(
+        &*simulation.torn_model()?,
+        &state.positions,
+        simulation.steps_taken(),
+    )
 }
 
 /// Seed of the benchmark's irregular mesh (`scenes/bench-irregular.toml` uses the same).
@@ -497,6 +524,7 @@ fn measure(
         phases.push(times);
         source = from;
     }
+    check_state(simulation)?;
     let timing = match source {
         TimingSource::Timestamps => "gpu timestamps",
         TimingSource::WallClock => "wall clock",
@@ -913,16 +941,32 @@ mod tests {
     }
 
     #[test]
-    fn only_an_accumulation_out_of_range_skips_a_method() {
+    fn an_accumulation_out_of_range_or_an_exploded_state_skips_a_method() {
         let overflow = || SimError::Overflow {
             step: 280,
             detail: "a spring force exceeded the fixed-point range".into(),
         };
         let from_engine = anyhow::Error::from(EngineError::Simulation(overflow()))
             .context("grid 256^2, gpu scatter/atomic-fixed");
-        assert!(out_of_range(&from_engine));
-        assert!(out_of_range(&anyhow::Error::from(overflow())));
+        assert!(skips_row(&from_engine));
+        assert!(skips_row(&anyhow::Error::from(overflow())));
         let unstable = EngineError::Simulation(SimError::NonFinite { step: 3, vertex: 7 });
-        assert!(!out_of_range(&anyhow::Error::from(unstable)));
+        assert!(!skips_row(&anyhow::Error::from(unstable)));
+        // The workload as built is healthy; with a vertex pulled 10 m away (100 rest lengths
+        // are 6.7 m at 16^2) it is not, and the row is skipped with the reason.
+        let scene = benchmark_scene(MeshKind::Grid(16)).expect("scene");
+        let choice = SolverChoice::Cpu(CpuOptions::default());
+        let mut simulation = Simulation::from_scene(&scene, choice, None).expect("cpu");
+        simulation.step(10).expect("steps");
+        check_state(&simulation).expect("healthy");
+        let mut state = simulation.state().expect("state");
+        state.positions[5].y -= 10.0;
+        simulation.set_state(&state);
+        let exploded = check_state(&simulation).expect_err("stretched past 100 rest lengths");
+        assert!(
+            matches!(exploded, SimError::Exploded { step: 10, .. }),
+            "{exploded}"
+        );
+        assert!(skips_row(&anyhow::Error::from(exploded)));
     }
 }

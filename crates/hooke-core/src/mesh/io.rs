@@ -639,7 +639,10 @@ mod tests {
         broken[3].y = f64::NAN;
         write_ply_state(&path, &mesh.positions, &broken, &mesh.triangles).expect("write");
         let error = read_ply_state(&path).expect_err("nan").to_string();
-        assert!(error.contains("vertex 3") && error.contains("'prev_y'"), "{error}");
+        assert!(
+            error.contains("vertex 3") && error.contains("'prev_y'"),
+            "{error}"
+        );
         // Any scalar type is read.
         let text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
                     property int z\nproperty float prev_x\nproperty float prev_y\n\
