@@ -864,9 +864,9 @@ impl Solver for CpuSolver {
         if self.numbering.valence_windows {
             order += &format!(", valence-sorted in windows of {}", layout::VALENCE_WINDOW);
         }
-        let depth = self.sweep_depth();
+        let depth = self.steps_per_sweep();
         if depth > 1 {
-            // Where nothing acts between steps (see `sweep`): a figure then depends on it.
+            // While nothing acts between steps (see `sweep`): a figure then depends on it.
             order += &format!(", up to {depth} steps per sweep");
         }
         format!(

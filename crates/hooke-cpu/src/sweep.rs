@@ -340,6 +340,7 @@ impl CpuSolver {
 mod tests {
     use hooke_core::Solver;
     use hooke_core::scene::{MeshSection, Scene};
+    use hooke_core::selfcollide::SelfCollision;
     use hooke_testkit::benchmark_scene;
 
     use super::*;
@@ -379,6 +380,11 @@ mod tests {
                 assert_eq!(swept.reads_points, reads_points);
                 let steps = format!("up to {} steps per sweep", plan.depth);
                 assert!(swept.describe().contains(&steps), "{}", swept.describe());
+                // Self-collision acts between steps: the description claims no sweep then.
+                let config = SelfCollision::for_model(&scene.model);
+                swept.set_self_collision(Some(config)).expect("set");
+                assert!(!swept.describe().contains("sweep"), "{}", swept.describe());
+                swept.set_self_collision(None).expect("unset");
                 assert!(
                     !single.describe().contains("sweep"),
                     "{}",
