@@ -20,8 +20,9 @@
 //! moves with the machine's speed; a ratio within a round does not, or much less.
 //!
 //! Each solver's state is checked, untimed, after the warm-up, after each round and after the
-//! phase-timed steps, as `hooke run` checks it: a row whose state has exploded is skipped, with
-//! the reason, rather than timed on numbers that no longer mean anything.
+//! phase-timed steps, as `hooke run` checks it: where it has exploded, the row says so and
+//! from when. A plain spring step costs the same on any state, but a self-collision step's
+//! cost follows the contact, and a figure of a state no run would keep should say it is one.
 //!
 //! The bandwidth floor is the bytes one fused step must move at least once divided by the copy
 //! bandwidth measured on the spot, with the same threads, on a buffer as large as those bytes:
@@ -146,6 +147,10 @@ struct Row {
     total_ms: f64,
     /// Each round's median of the fused step, in the order run.
     total_rounds_ms: Vec<f64>,
+    /// When the row's state was first found exploded (`hooke run`'s check, made after the
+    /// warm-up, each round and the phase-timed steps), and how; its later times are of that
+    /// state.
+    exploded: Option<String>,
     springs_per_second: f64,
     bytes_per_step: usize,
     /// GPU: the compute dispatches and draws one step records.
@@ -231,33 +236,30 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                     return Err(error).with_context(|| format!("{name}, {}", choice.name()));
                 }
             };
-            let warmed = simulation
-                .step(args.warmup)
-                .and_then(|()| check_state(&simulation))
-                .map_err(anyhow::Error::from);
-            let entry = Timed {
+            let warmed = simulation.step(args.warmup).map_err(anyhow::Error::from);
+            let mut entry = Timed {
                 name: name.clone(),
                 kind,
                 self_collision,
                 scene: scenes.len(),
                 simulation,
                 rounds_ms: Vec::new(),
+                exploded: None,
             };
             if entry.keep(warmed, &mut skipped)?.is_some() {
+                entry.note_explosion("after the warm-up")?;
                 timed.push(entry);
             }
         }
         scenes.push(scene);
     }
-    for _ in 0..args.rounds {
+    for round in 1..=args.rounds {
         let mut kept = Vec::with_capacity(timed.len());
         for mut entry in timed {
-            let timing = median_step_ms(&mut entry.simulation, args).and_then(|ms| {
-                check_state(&entry.simulation)?;
-                Ok(ms)
-            });
+            let timing = median_step_ms(&mut entry.simulation, args);
             if let Some(ms) = entry.keep(timing, &mut skipped)? {
                 entry.rounds_ms.push(ms);
+                entry.note_explosion(&format!("after round {round}"))?;
                 kept.push(entry);
             }
         }
@@ -335,12 +337,23 @@ struct Timed {
     scene: usize,
     simulation: Simulation,
     rounds_ms: Vec<f64>,
+    /// When its state was first found exploded, and how (see [`explosion`]).
+    exploded: Option<String>,
 }
 
 impl Timed {
+    /// Checks the state (untimed) until it is first found exploded, and notes when.
+    fn note_explosion(&mut self, when: &str) -> anyhow::Result<()> {
+        if self.exploded.is_none() {
+            let found = explosion(&self.simulation)
+                .with_context(|| format!("{}, {}", self.name, self.simulation.describe()))?;
+            self.exploded = found.map(|why| format!("{when}, {why}"));
+        }
+        Ok(())
+    }
+
     /// `result`'s value; `None`, noted in `skipped`, if the method's accumulation could not
-    /// hold this workload's forces or its state exploded (the others still run); any other
-    /// failure ends the bench.
+    /// hold this workload's forces (the others still run); any other failure ends the bench.
     fn keep<T>(
         &self,
         result: anyhow::Result<T>,
@@ -348,7 +361,7 @@ impl Timed {
     ) -> anyhow::Result<Option<T>> {
         match result {
             Ok(value) => Ok(Some(value)),
-            Err(error) if skips_row(&error) => {
+            Err(error) if out_of_range(&error) => {
                 let why = format!(
                     "{} {}: {error:#}",
                     self.name,
@@ -366,32 +379,33 @@ impl Timed {
 }
 
 /// True when a method failed because its accumulation's range could not hold the workload's
-/// forces (a property of the method, not a fault of the run), or because its state went past
-/// the point where `hooke run` would stop (see [`check_state`]).
-fn skips_row(error: &anyhow::Error) -> bool {
-    let skips =
-        |error: &SimError| matches!(error, SimError::Overflow { .. } | SimError::Exploded { .. });
+/// forces (a property of the method, not a fault of the run).
+fn out_of_range(error: &anyhow::Error) -> bool {
     error.chain().any(|cause| {
         matches!(
             cause.downcast_ref::<EngineError>(),
-            Some(EngineError::Simulation(error)) if skips(error)
-        ) || cause.downcast_ref::<SimError>().is_some_and(skips)
+            Some(EngineError::Simulation(SimError::Overflow { .. }))
+        ) || matches!(
+            cause.downcast_ref::<SimError>(),
+            Some(SimError::Overflow { .. })
+        )
     })
 }
 
-/// Whether a timed state still means something: `hooke run`'s check (no spring stretched past
-/// `EXPLOSION_STRETCH` rest lengths, every position finite), untimed, after the warm-up and
-/// after each round and the phase-timed steps. The workload's springs are soft for its mass
-/// (corner pins carry the whole cloth), so a long warm-up stretches the corners without end:
-/// at 512^2 past 100 rest lengths by step 1,600, where the times would be of a state no run
-/// keeps, and a self-collision step's cost depends on the state.
-fn check_state(simulation: &Simulation) -> Result<(), SimError> {
+/// `hooke run`'s check of a state (no spring stretched past `EXPLOSION_STRETCH` rest lengths,
+/// every position finite): `Ok(Some(why))` where the state has exploded, which the bench notes
+/// and times on; an error where a position is not finite or the state cannot be read. The
+/// workload's springs are soft for its mass (the corner pins carry the whole cloth), so a
+/// long run stretches the corners without end: past 100 rest lengths by step 1,600 at 512^2
+/// and by step 400 at 2048^2.
+fn explosion(simulation: &Simulation) -> Result<Option<String>, SimError> {
     let state = simulation.state()?;
-    check_health(
-        &*simulation.torn_model()?,
-        &state.positions,
-        simulation.steps_taken(),
-    )
+    let model = simulation.torn_model()?;
+    match check_health(&model, &state.positions, simulation.steps_taken()) {
+        Ok(()) => Ok(None),
+        Err(exploded @ SimError::Exploded { .. }) => Ok(Some(exploded.to_string())),
+        Err(error) => Err(error),
+    }
 }
 
 /// Seed of the benchmark's irregular mesh (`scenes/bench-irregular.toml` uses the same).
@@ -515,16 +529,16 @@ fn measure(
     args: &BenchArgs,
     copy_pool: &rayon::ThreadPool,
 ) -> anyhow::Result<Row> {
-    let simulation = &mut timed.simulation;
     let total_ms = median_ms(timed.rounds_ms.clone());
     let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
     let mut source = TimingSource::WallClock;
     for _ in 0..args.steps {
-        let (times, from) = simulation.step_timed()?;
+        let (times, from) = timed.simulation.step_timed()?;
         phases.push(times);
         source = from;
     }
-    check_state(simulation)?;
+    timed.note_explosion("after the phase-timed steps")?;
+    let simulation = &mut timed.simulation;
     let timing = match source {
         TimingSource::Timestamps => "gpu timestamps",
         TimingSource::WallClock => "wall clock",
@@ -582,6 +596,7 @@ fn measure(
         phased_total_ms: medians.total,
         total_ms,
         total_rounds_ms: timed.rounds_ms.clone(),
+        exploded: timed.exploded.clone(),
         springs_per_second: scene.model.spring_count() as f64 / (total_ms * 1e-3),
         bytes_per_step,
         dispatches_per_step,
@@ -773,6 +788,14 @@ fn print_report(report: &Report) {
     for why in &report.skipped {
         println!("skipped {why}");
     }
+    for row in &report.rows {
+        if let Some(why) = &row.exploded {
+            println!(
+                "exploded: {} {} {} {why}; its times from then on are of a state `hooke run` would have stopped at.",
+                row.mesh, row.backend, row.method
+            );
+        }
+    }
     if report.rows.iter().any(|r| r.dt_above_stability_bound) {
         println!(
             "*: the workload's dt exceeds hooke's conservative stability bound on this mesh (it ran stably here)."
@@ -866,6 +889,7 @@ mod tests {
             phased_total_ms: 0.0,
             total_ms: median_ms(rounds.to_vec()),
             total_rounds_ms: rounds.to_vec(),
+            exploded: None,
             springs_per_second: 0.0,
             bytes_per_step: 0,
             dispatches_per_step: None,
@@ -941,32 +965,55 @@ mod tests {
     }
 
     #[test]
-    fn an_accumulation_out_of_range_or_an_exploded_state_skips_a_method() {
+    fn only_an_accumulation_out_of_range_skips_a_method() {
         let overflow = || SimError::Overflow {
             step: 280,
             detail: "a spring force exceeded the fixed-point range".into(),
         };
         let from_engine = anyhow::Error::from(EngineError::Simulation(overflow()))
             .context("grid 256^2, gpu scatter/atomic-fixed");
-        assert!(skips_row(&from_engine));
-        assert!(skips_row(&anyhow::Error::from(overflow())));
+        assert!(out_of_range(&from_engine));
+        assert!(out_of_range(&anyhow::Error::from(overflow())));
         let unstable = EngineError::Simulation(SimError::NonFinite { step: 3, vertex: 7 });
-        assert!(!skips_row(&anyhow::Error::from(unstable)));
+        assert!(!out_of_range(&anyhow::Error::from(unstable)));
+    }
+
+    #[test]
+    fn an_exploded_state_is_noted_and_a_non_finite_one_is_an_error() {
         // The workload as built is healthy; with a vertex pulled 10 m away (100 rest lengths
-        // are 6.7 m at 16^2) it is not, and the row is skipped with the reason.
+        // are 6.7 m at 16^2) it has exploded; with one at infinity it is not finite.
         let scene = benchmark_scene(MeshKind::Grid(16)).expect("scene");
         let choice = SolverChoice::Cpu(CpuOptions::default());
         let mut simulation = Simulation::from_scene(&scene, choice, None).expect("cpu");
         simulation.step(10).expect("steps");
-        check_state(&simulation).expect("healthy");
-        let mut state = simulation.state().expect("state");
+        assert_eq!(explosion(&simulation), Ok(None));
+        let healthy = simulation.state().expect("state");
+        let mut state = healthy.clone();
         state.positions[5].y -= 10.0;
         simulation.set_state(&state);
-        let exploded = check_state(&simulation).expect_err("stretched past 100 rest lengths");
-        assert!(
-            matches!(exploded, SimError::Exploded { step: 10, .. }),
-            "{exploded}"
-        );
-        assert!(skips_row(&anyhow::Error::from(exploded)));
+        let why = explosion(&simulation).expect("readable").expect("exploded");
+        assert!(why.starts_with("step 10: the simulation exploded"), "{why}");
+        let mut entry = Timed {
+            name: "grid 16^2".to_owned(),
+            kind: MeshKind::Grid(16),
+            self_collision: None,
+            scene: 0,
+            simulation,
+            rounds_ms: Vec::new(),
+            exploded: None,
+        };
+        entry.note_explosion("after round 2").expect("noted");
+        let noted = entry.exploded.clone().expect("noted");
+        assert!(noted.starts_with("after round 2, step 10:"), "{noted}");
+        // The first explosion stays noted.
+        entry.simulation.set_state(&healthy);
+        entry.note_explosion("after round 3").expect("noted");
+        assert_eq!(entry.exploded, Some(noted));
+        state.positions[5].y = f64::INFINITY;
+        entry.simulation.set_state(&state);
+        assert!(matches!(
+            explosion(&entry.simulation),
+            Err(SimError::NonFinite { vertex: 5, .. })
+        ));
     }
 }
