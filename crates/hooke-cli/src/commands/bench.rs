@@ -20,8 +20,9 @@
 //! moves with the machine's speed; a ratio within a round does not, or much less.
 //!
 //! Each solver's state is checked, untimed, after the rounds and after the phase-timed steps,
-//! as `hooke run` checks it: where it has exploded, the row says so and from when. A plain spring step costs the same on any state, but a self-collision step's
-//! cost follows the contact, and a figure of a state no run would keep should say it is one.
+//! as `hooke run` checks it: where it has exploded, the row says so and from when. A plain
+//! spring step costs the same on any state, but a self-collision step's cost follows the
+//! contact, and a figure of a state no run would keep should say it is one.
 //!
 //! The bandwidth floor is the bytes one fused step must move at least once divided by the copy
 //! bandwidth measured on the spot, with the same threads, on a buffer as large as those bytes:
