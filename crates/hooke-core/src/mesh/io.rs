@@ -8,7 +8,7 @@ use std::path::Path;
 use glam::DVec3;
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{
-    Addable, BeginList, ElementDef, Encoding, Header, Ply, Property, PropertyAccess,
+    Addable, BeginList, ElementDef, Encoding, Header, Property, PropertyAccess,
     PropertyAccessResult, PropertyDef, PropertyType, ScalarType,
 };
 use ply_rs_bw::writer::Writer;
@@ -106,30 +106,57 @@ pub(super) fn fan_triangulate(polygon: &[u32], triangles: &mut Vec<[u32; 3]>) {
     }
 }
 
-/// A PLY file's contents, and an error maker that names the file.
-fn parse_ply<E: PropertyAccess>(
-    bytes: &[u8],
-    name: &str,
-) -> Result<(Ply<E>, impl Fn(String) -> MeshLoadError), MeshLoadError> {
-    let owned = name.to_owned();
-    let parse_error = move |message: String| MeshLoadError::Parse {
-        path: owned.clone(),
+/// An error maker for file `name`'s PLY contents.
+fn ply_error(name: &str) -> impl Fn(String) -> MeshLoadError + '_ {
+    move |message| MeshLoadError::Parse {
+        path: name.to_owned(),
         line: None,
         message,
-    };
-    let parser = Parser::<E>::new();
+    }
+}
+
+/// A PLY file's `vertex` element (its definition and records) and `face` records, where it
+/// has them.
+type Elements<V, F> = (Option<(ElementDef, Vec<V>)>, Option<Vec<F>>);
+
+/// Reads a PLY file's elements in the header's order, each into records of its own kind:
+/// `vertex` into `V`, `face` into `F`, any other passed over. A map of named properties per
+/// vertex and per face (`DefaultElement`) took most of a 512^2 mesh's loading (1.07 s for
+/// `hooke run` of 10 steps, 0.4 of them after).
+fn read_ply<V: PropertyAccess, F: PropertyAccess>(
+    bytes: &[u8],
+    name: &str,
+) -> Result<Elements<V, F>, MeshLoadError> {
+    let parse_error = ply_error(name);
     let mut reader = Reader::new(bytes);
-    let header = parser
+    let header = Parser::<SkippedRecord>::new()
         .read_header(&mut reader)
         .map_err(|e| parse_error(e.to_string()))?;
     check_element_counts(&header, reader.get_ref().len()).map_err(&parse_error)?;
-    let payload = parser
-        .read_payload(&mut reader, &header)
-        .map_err(|e| parse_error(e.to_string()))?;
-    let mut ply = Ply::new();
-    ply.header = header;
-    ply.payload = payload;
-    Ok((ply, parse_error))
+    let (mut vertices, mut faces) = (None, None);
+    for definition in header.elements.values() {
+        let read = |e: ply_rs_bw::parser::ParseError| parse_error(e.to_string());
+        match definition.name.as_str() {
+            "vertex" => {
+                let records = Parser::<V>::new()
+                    .read_payload_for_element(&mut reader, definition, &header)
+                    .map_err(read)?;
+                vertices = Some((definition.clone(), records));
+            }
+            "face" => {
+                let records = Parser::<F>::new()
+                    .read_payload_for_element(&mut reader, definition, &header)
+                    .map_err(read)?;
+                faces = Some(records);
+            }
+            _ => {
+                Parser::<SkippedRecord>::new()
+                    .read_payload_for_element(&mut reader, definition, &header)
+                    .map_err(read)?;
+            }
+        }
+    }
+    Ok((vertices, faces))
 }
 
 /// Refuses a header whose element counts the rest of the file cannot hold. The parser makes one
@@ -176,42 +203,8 @@ fn scalar_size(scalar: &ScalarType) -> u128 {
 }
 
 fn load_ply(bytes: &[u8], name: &str) -> Result<Mesh, MeshLoadError> {
-    let parse_error = |message: String| MeshLoadError::Parse {
-        path: name.to_owned(),
-        line: None,
-        message,
-    };
-    let mut reader = Reader::new(bytes);
-    let header = Parser::<SkippedRecord>::new()
-        .read_header(&mut reader)
-        .map_err(|e| parse_error(e.to_string()))?;
-    check_element_counts(&header, reader.get_ref().len()).map_err(&parse_error)?;
-    // Each element in the header's order, read into records of its own kind: a map of named
-    // properties per vertex and per face (`DefaultElement`) took most of a 512^2 mesh's
-    // loading (1.07 s for `hooke run` of 10 steps, 0.4 of them after).
-    let (mut vertices, mut faces) = (None, None);
-    for definition in header.elements.values() {
-        let read = |e: ply_rs_bw::parser::ParseError| parse_error(e.to_string());
-        match definition.name.as_str() {
-            "vertex" => {
-                let records = Parser::<VertexRecord>::new()
-                    .read_payload_for_element(&mut reader, definition, &header)
-                    .map_err(read)?;
-                vertices = Some((definition, records));
-            }
-            "face" => {
-                let records = Parser::<FaceRecord>::new()
-                    .read_payload_for_element(&mut reader, definition, &header)
-                    .map_err(read)?;
-                faces = Some(records);
-            }
-            _ => {
-                Parser::<SkippedRecord>::new()
-                    .read_payload_for_element(&mut reader, definition, &header)
-                    .map_err(read)?;
-            }
-        }
-    }
+    let parse_error = ply_error(name);
+    let (vertices, faces) = read_ply::<VertexRecord, FaceRecord>(bytes, name)?;
     let (definition, vertices) =
         vertices.ok_or_else(|| parse_error("no 'vertex' element".into()))?;
     // A record's values are its scalar properties in the header's order.
@@ -222,15 +215,14 @@ fn load_ply(bytes: &[u8], name: &str) -> Result<Mesh, MeshLoadError> {
         .map(|p| p.name.as_str())
         .collect();
     let column = |name: &str| -> Result<Vec<f64>, MeshLoadError> {
-        let slot = scalars.iter().position(|n| *n == name);
+        let at = slot(&scalars, name);
         vertices
             .iter()
             .enumerate()
             .map(|(index, vertex)| {
-                slot.and_then(|slot| vertex.0.get(slot).copied().flatten())
-                    .ok_or_else(|| {
-                        parse_error(format!("vertex {index} has no numeric '{name}' property"))
-                    })
+                at.and_then(|at| vertex.0.get(at).copied()).ok_or_else(|| {
+                    parse_error(format!("vertex {index} has no numeric '{name}' property"))
+                })
             })
             .collect()
     };
@@ -298,9 +290,8 @@ const UV_NAMES: [[&str; 2]; 4] = [
 ];
 
 /// A PLY vertex as read: its scalar properties in the order of the header (the parser sets
-/// them in that order), each as a float64, `None` for one that is not a number; lists are
-/// passed over.
-struct VertexRecord(Vec<Option<f64>>);
+/// them in that order), each as a float64; lists are passed over.
+struct VertexRecord(Vec<f64>);
 
 impl PropertyAccess for VertexRecord {
     fn new() -> Self {
@@ -309,11 +300,12 @@ impl PropertyAccess for VertexRecord {
 
     fn set_property(&mut self, _name: &str, property: Property) -> PropertyAccessResult {
         match scalar_as_f64(&property) {
-            Some(value) => self.0.push(Some(value)),
-            None if is_list(&property) => return PropertyAccessResult::Ignored,
-            None => self.0.push(None),
+            Some(value) => {
+                self.0.push(value);
+                PropertyAccessResult::Set
+            }
+            None => PropertyAccessResult::Ignored,
         }
-        PropertyAccessResult::Set
     }
 }
 
@@ -364,20 +356,6 @@ impl PropertyAccess for SkippedRecord {
     }
 }
 
-fn is_list(property: &Property) -> bool {
-    !matches!(
-        property,
-        Property::Float(_)
-            | Property::Double(_)
-            | Property::Char(_)
-            | Property::UChar(_)
-            | Property::Short(_)
-            | Property::UShort(_)
-            | Property::Int(_)
-            | Property::UInt(_)
-    )
-}
-
 fn scalar_as_f64(property: &Property) -> Option<f64> {
     Some(match *property {
         Property::Float(v) => f64::from(v),
@@ -411,11 +389,9 @@ fn list_as_indices(property: &Property) -> Option<Vec<u32>> {
 pub fn read_ply_state(path: &Path) -> Result<crate::State, MeshLoadError> {
     let name = path.display().to_string();
     let bytes = crate::input_file::read(path).map_err(io_error(&name))?;
-    let (ply, parse_error) = parse_ply::<ReadStateVertex>(&bytes, &name)?;
-    let vertices = ply
-        .payload
-        .get("vertex")
-        .ok_or_else(|| parse_error("no 'vertex' element".into()))?;
+    let parse_error = ply_error(&name);
+    let (vertices, _) = read_ply::<ReadStateVertex, SkippedRecord>(&bytes, &name)?;
+    let (_, vertices) = vertices.ok_or_else(|| parse_error("no 'vertex' element".into()))?;
     let mut state = crate::State {
         positions: Vec::with_capacity(vertices.len()),
         previous_positions: Vec::with_capacity(vertices.len()),
@@ -437,7 +413,7 @@ pub fn read_ply_state(path: &Path) -> Result<crate::State, MeshLoadError> {
 }
 
 /// A state file's vertex as read: each of [`StateVertex::NAMES`] if the file has it, of any
-/// scalar type. (Every element of the file is read as one of these; a face sets nothing.)
+/// scalar type.
 struct ReadStateVertex([Option<f64>; 6]);
 
 impl PropertyAccess for ReadStateVertex {
@@ -446,7 +422,7 @@ impl PropertyAccess for ReadStateVertex {
     }
 
     fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
-        match StateVertex::NAMES.iter().position(|n| *n == name) {
+        match slot(&StateVertex::NAMES, name) {
             Some(slot) => {
                 self.0[slot] = scalar_as_f64(&property);
                 PropertyAccessResult::Set
@@ -521,8 +497,7 @@ impl PropertyAccess for FrameVertex {
     }
 
     fn get_float(&self, name: &str) -> Option<f32> {
-        let slot = Self::NAMES.iter().position(|n| *n == name)?;
-        Some(self.0[slot])
+        Some(self.0[slot(&Self::NAMES, name)?])
     }
 }
 
@@ -539,9 +514,13 @@ impl PropertyAccess for StateVertex {
     }
 
     fn get_double(&self, name: &str) -> Option<f64> {
-        let slot = Self::NAMES.iter().position(|n| *n == name)?;
-        Some(self.0[slot])
+        Some(self.0[slot(&Self::NAMES, name)?])
     }
+}
+
+/// Where property `name` is among a record's `names`.
+fn slot(names: &[&str], name: &str) -> Option<usize> {
+    names.iter().position(|n| *n == name)
 }
 
 /// A written triangle: `vertex_indices`.
