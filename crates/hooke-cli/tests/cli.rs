@@ -43,6 +43,27 @@ fn gpu_grid_bench(side: &str, options: &[&str]) -> serde_json::Value {
     json_report(&[&grid[..], options].concat())
 }
 
+/// `hooke bench` of the cpu gather on grids of `sides` vertices a side (no irregular or
+/// shuffled mesh), 10 timed steps after 1 warm-up step, with `options`.
+fn gather_grid_bench<'a>(sides: &'a str, options: &[&'a str]) -> Vec<&'a str> {
+    let grid = [
+        "bench",
+        "--sizes",
+        sides,
+        "--irregular",
+        "0",
+        "--shuffled",
+        "0",
+        "--methods",
+        "gather",
+        "--steps",
+        "10",
+        "--warmup",
+        "1",
+    ];
+    [&grid[..], options].concat()
+}
+
 fn write(dir: &Path, name: &str, contents: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, contents).expect("write file");
@@ -331,23 +352,7 @@ fn bench_prints_a_row_per_mesh_and_method() {
 #[test]
 fn bench_says_which_rows_swept_several_steps_at_a_time() {
     // 256^2 is the smallest grid laid out to sweep; self-collision acts between steps.
-    let args = [
-        "bench",
-        "--sizes",
-        "16,256",
-        "--irregular",
-        "0",
-        "--shuffled",
-        "0",
-        "--methods",
-        "gather",
-        "--steps",
-        "10",
-        "--warmup",
-        "1",
-        "--self-collision",
-        "4",
-    ];
+    let args = gather_grid_bench("16,256", &["--self-collision", "4"]);
     let report = json_report(&args);
     let sweeps: Vec<(&str, u64)> = report["rows"]
         .as_array()
@@ -439,23 +444,7 @@ fn bench_times_every_solver_in_each_round_and_reports_the_median_round() {
 
 #[test]
 fn bench_adds_bending_springs_to_every_workload() {
-    let report = json_report(&[
-        "bench",
-        "--sizes",
-        "16",
-        "--irregular",
-        "0",
-        "--shuffled",
-        "0",
-        "--methods",
-        "gather",
-        "--steps",
-        "10",
-        "--warmup",
-        "1",
-        "--bending",
-        "0.1",
-    ]);
+    let report = json_report(&gather_grid_bench("16", &["--bending", "0.1"]));
     let row = &report["rows"][0];
     // 16^2 grid: 705 edges, of which 645 are interior, each with a bending spring.
     assert_eq!(row["mesh"], "grid 16^2 + bending");
