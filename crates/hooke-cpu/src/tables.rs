@@ -86,8 +86,8 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
 /// Vertices whose springs the scatter force pass visits together on a structured mesh: their
 /// positions (and their springs' far ends, a row of the mesh further on) stay in the
 /// second-level cache while the pass visits each kind of spring in turn.
-/// 1,024 rather than 4,096 (until 2026-12-02): a mesh of 65,536 vertices then has blocks
-/// enough for a band per thread, and on an Intel Xeon VM the 512^2 grid's scatter step took
+/// 1,024 since 2026-12-02 (4,096 before): a mesh of 65,536 vertices then has blocks enough
+/// for a band per thread, and on an Intel Xeon VM the 512^2 grid's scatter step took
 /// 0.65-0.76 ms against 0.73-0.78, with no change beyond the noise at 1024^2 and 2048^2 (the
 /// AMD VM of earlier sessions had found larger blocks faster at 2048^2).
 pub(crate) const SPRING_BLOCK: u32 = 1024;
