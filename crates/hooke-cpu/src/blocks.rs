@@ -323,9 +323,8 @@ impl BlockSweep {
             })
             .collect();
         let reach = reaches?.into_iter().max().unwrap_or(0);
-        let band_count = threads.min(blocks / (4 * DEPTH * reach.max(1)));
-        let enough = if threads > 1 { 2 } else { 1 };
-        (band_count >= enough).then(|| Self {
+        let band_count = sweep::bands(blocks, 4 * DEPTH * reach.max(1), threads)?;
+        Some(Self {
             reach,
             bands: (0..=band_count).map(|b| b * blocks / band_count).collect(),
         })

@@ -169,13 +169,19 @@ fn lean(reaches: &[usize], b: usize, reach: usize) -> usize {
 
 /// The bands and steps per sweep of [`Sweep::of`] for `slices` slices of this reach.
 fn bands_and_depth(slices: usize, reach: usize, threads: usize) -> Option<(usize, usize)> {
-    let bands = |depth: usize| threads.min(slices / (4 * depth * reach.max(1)));
-    let most = bands(2);
-    if most == 0 || (most == 1 && threads > 1) {
-        return None;
-    }
-    let depth = (2..=DEPTH).rev().find(|&d| bands(d) == most)?;
+    let bands_of = |depth: usize| bands(slices, 4 * depth * reach.max(1), threads);
+    let most = bands_of(2)?;
+    let depth = (2..=DEPTH).rev().find(|&d| bands_of(d) == Some(most))?;
     Some((most, depth))
+}
+
+/// How many bands at least `width` wide a sweep cuts `units` (slices, or scatter's blocks)
+/// into: one per thread at most, and none where not even one fits or only one would on
+/// several threads (that one thread would sweep while the others waited).
+pub(crate) fn bands(units: usize, width: usize, threads: usize) -> Option<usize> {
+    let bands = threads.min(units / width);
+    let enough = if threads > 1 { 2 } else { 1 };
+    (bands >= enough).then_some(bands)
 }
 
 /// The buffers of a sweep, as pointers that every band's thread uses (see [`Buffers::step`]).
