@@ -22,14 +22,21 @@
 //! in the cache, as the gather's sweep does with slices. A block's rows reach at most `r`
 //! blocks past it (its springs' ends), so the slices of block `k` sum rows of blocks
 //! `k - r..=k`. Step `j` of a sweep (1-based) computes its rows from the positions of step
-//! `j - 1` and integrates from them into the buffer of step `j - 2`, so within a band
-//! `[s, e)` it covers blocks `[s + (j-1) r, e - (j-1) r)` and trails step `j - 1` by `r`
-//! blocks: the positions its rows read are then final, and no later step of `j - 1` reads
-//! what it overwrites (rows or positions). A slice there whose sums reach rows before
-//! `s + (j-1) r` waits. When every band is done, one task per band boundary `b` runs steps
-//! `1..=DEPTH` over the strip `[b - (j-1) r, b + (j-1) r)`, its rows and slices, and the
-//! slices of `[b + (j-1) r, b + j r)` that waited; boundaries lie at least `4 DEPTH r` blocks
-//! apart, so those tasks touch disjoint memory. Every vertex sums the same forces in the same
+//! `j - 1` and integrates from them into the buffer of step `j - 2`. Each band's steps lean
+//! into the band above, as the gather's do: band `k`'s slices of step `j` cover
+//! `[s_k + (j-1) r, s_{k+1} + (j-1) r)` (`s_k` its lower boundary, moved down to even out the
+//! bands' work), and its rows start a reach lower, where its slices of step `j - 1` start,
+//! so its slices sum only its own rows and its rows read positions of its own slices (or the
+//! sweep's first; at the mesh's ends rows and slices start and end together). Within the band, step `j`
+//! trails step `j - 1` by `r` blocks: the positions its rows read are then final, and no
+//! slice of step `j - 1` still sums the rows it overwrites. Past its top boundary a band
+//! then finishes each step, rows once the band above has done its slices of step `j - 1` a
+//! reach past them (whose positions they read, and whose rows of step `j - 1` they
+//! overwrite), slices once that band has done its rows of step `j` up to them. Bands are
+//! taken from the top down, and a band does its lowest blocks without waiting, so the band
+//! waited for is always running and soon there. An earlier schedule stopped each band's
+//! steps short of its ends and ran the strips left at each boundary in a second pass, one
+//! thread per boundary (see the README). Every vertex sums the same forces in the same
 //! order: the states are bit-identical (tested).
 
 use std::ops::Range;
@@ -41,7 +48,7 @@ use crate::kernels::{
     SpringForces, SpringTable, VertexChunk,
 };
 use crate::layout::LANES;
-use crate::sweep::{self, Buffers, Finite, both};
+use crate::sweep::{self, Buffers, Finite, Progress};
 use crate::tables::SPRING_BLOCK;
 use crate::view::{Floats, Points, Positions};
 
@@ -208,20 +215,34 @@ impl Blocks {
 }
 
 impl Blocks {
-    /// `depth` steps (2..=[`DEPTH`]) in one sweep over the blocks (see the module docs):
-    /// the bands, then the strips at their boundaries. Per step, whether every new position
-    /// was finite.
+    /// `depth` steps (2..=[`DEPTH`]) in one sweep over the blocks, a band per task (see the
+    /// module docs). Per step, whether every new position was finite.
     pub(crate) fn sweep(
         &self,
         depth: usize,
         isa: InstructionSet,
-        (springs, incidence): (&SpringTable, &IncidenceTable),
+        tables: (&SpringTable, &IncidenceTable),
         spring_forces: &mut SpringForces,
         integrator: &Integrator,
         buffers: &Buffers,
     ) -> Finite {
         let plan = self.sweep.as_ref().expect("a sweep plan");
-        let (r, blocks) = (plan.reach, self.rows.len() - 1);
+        let blocks = self.rows.len() - 1;
+        self.with_work(isa, tables, spring_forces, integrator, buffers, |work| {
+            plan.run(depth, blocks, work)
+        })
+    }
+
+    /// `f` of the work of a sweep's steps over `buffers` (see [`Work`]).
+    fn with_work<R>(
+        &self,
+        isa: InstructionSet,
+        (springs, incidence): (&SpringTable, &IncidenceTable),
+        spring_forces: &mut SpringForces,
+        integrator: &Integrator,
+        buffers: &Buffers,
+        f: impl FnOnce(&Work<'_>) -> R,
+    ) -> R {
         let forces = Forces::new(spring_forces);
         // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
         let view = unsafe { forces.view() };
@@ -234,65 +255,156 @@ impl Blocks {
                 isa, incidence, view, integrator, current, None, chunk,
             )
         };
-        // Step j: the rows of blocks `rows`, from the positions of step j - 1; then the slices
-        // of blocks `slices` that `keep` keeps.
-        let unit =
-            |j: usize, rows: Range<usize>, slices: Range<usize>, keep: &dyn Fn(usize) -> bool| {
-                if !rows.is_empty() {
-                    let (first, end) = (self.rows[rows.start], self.rows[rows.end]);
-                    // SAFETY: the schedule of the module docs: these rows and the positions
-                    // they read are this task's alone while it runs.
-                    unsafe {
-                        let out = forces.rows(first..end);
-                        kernels::spring_forces(isa, springs, buffers.positions(j - 1), first, out);
-                    }
+        let work = Work {
+            rows: &|j: usize, blocks: Range<usize>| {
+                let (first, end) = (self.rows[blocks.start], self.rows[blocks.end]);
+                // SAFETY: the schedule of the module docs: these rows and the positions they
+                // read are this task's alone while it runs.
+                unsafe {
+                    let out = forces.rows(first..end);
+                    kernels::spring_forces(isa, springs, buffers.positions(j - 1), first, out);
                 }
-                runs(self.slices(slices), |s| keep(*s)).fold(true, |all, run| {
-                    // SAFETY: as above.
-                    let finite = unsafe { buffers.step(j, run, &kernel) };
-                    finite & all
-                })
-            };
-        let bands = (0..plan.bands.len() - 1).into_par_iter().map(|b| {
-            let (start, end) = (plan.bands[b], plan.bands[b + 1]);
-            let mut finite: Finite = [true; sweep::DEPTH + 1];
-            // Where step j has got to; it covers blocks [start + (j-1) r, end - (j-1) r).
-            let mut reached: [usize; sweep::DEPTH + 1] =
-                std::array::from_fn(|j| start + j.saturating_sub(1) * r);
-            for at in start + 1..=end {
-                for j in 1..=depth {
-                    // One reach behind step j - 1, which also keeps it off the band's end.
-                    let limit = at.saturating_sub((j - 1) * r);
-                    if limit > reached[j] {
-                        // Slices summing rows before this step's first wait for the strip.
-                        let first = start + (j - 1) * r;
-                        let keep = |s: usize| self.first_block[s] as usize >= first;
-                        finite[j] &= unit(j, reached[j]..limit, reached[j]..limit, &keep);
-                        reached[j] = limit;
-                    }
-                }
-            }
-            finite
-        });
-        let inner = bands.reduce(|| [true; sweep::DEPTH + 1], both);
-        let strips = plan.bands.par_iter().map(|&b| {
-            let mut finite: Finite = [true; sweep::DEPTH + 1];
-            for (j, finite) in finite.iter_mut().enumerate().take(depth + 1).skip(1) {
-                let low = b.saturating_sub((j - 1) * r);
-                let high = (b + (j - 1) * r).min(blocks);
-                // Past `high`, the slices the band after left waiting.
-                let waiting = self.slices(high..high).start;
-                let keep = |s: usize| s < waiting || (self.first_block[s] as usize) < high;
-                let until = (b + j * r).min(blocks);
-                *finite &= unit(j, low..high, low..until, &keep);
-            }
-            finite
-        });
-        both(inner, strips.reduce(|| [true; sweep::DEPTH + 1], both))
+            },
+            // SAFETY: as for the rows.
+            slices: &|j: usize, blocks: Range<usize>| unsafe {
+                buffers.step(j, self.slices(blocks), &kernel)
+            },
+        };
+        f(&work)
+    }
+}
+
+/// What a band of a sweep over the blocks does, step `j` (1-based) over blocks `blocks`: its
+/// rows, from the positions of step `j - 1`, and its slices, summed and integrated (true if
+/// every new position is finite).
+struct Work<'a> {
+    rows: &'a (dyn Fn(usize, Range<usize>) + Sync),
+    slices: &'a (dyn Fn(usize, Range<usize>) -> bool + Sync),
+}
+
+/// How far a band's rows and its slices have got, step by step.
+#[derive(Default)]
+struct BandProgress {
+    rows: Progress,
+    slices: Progress,
+}
+
+/// Where one band's steps have got: per step (1-based), the block below which its rows are
+/// done, and below which its slices are.
+struct Front<'a> {
+    rows: [usize; sweep::DEPTH + 1],
+    slices: [usize; sweep::DEPTH + 1],
+    finite: Finite,
+    work: &'a Work<'a>,
+    progress: &'a BandProgress,
+}
+
+impl Front<'_> {
+    /// Step `j`'s rows up to block `end`.
+    fn rows_to(&mut self, j: usize, end: usize) {
+        if end > self.rows[j] {
+            (self.work.rows)(j, self.rows[j]..end);
+            self.rows[j] = end;
+            self.progress.rows.publish(j, end);
+        }
+    }
+
+    /// Step `j`'s slices up to block `end`.
+    fn slices_to(&mut self, j: usize, end: usize) {
+        if end > self.slices[j] {
+            self.finite[j] &= (self.work.slices)(j, self.slices[j]..end);
+            self.slices[j] = end;
+            self.progress.slices.publish(j, end);
+        }
     }
 }
 
 impl BlockSweep {
+    /// Where band `k`'s slices of step `j` of a sweep of `depth` steps start, so where band
+    /// `k - 1`'s end: boundary `k`, moved down by half a reach for each of the `depth - 1`
+    /// steps (which gives every band the same block-steps), plus `j - 1` reaches.
+    fn slice_line(&self, k: usize, j: usize, depth: usize) -> usize {
+        let last = self.bands.len() - 1;
+        if k == 0 || k == last {
+            return self.bands[k];
+        }
+        self.bands[k] - (depth - 1) * self.reach / 2 + (j - 1) * self.reach
+    }
+
+    /// Where band `k`'s rows of step `j` start: a reach below its slices, whose sums read them
+    /// (so where its slices of step `j - 1` start), but at the mesh's ends.
+    fn row_line(&self, k: usize, j: usize, depth: usize) -> usize {
+        let line = self.slice_line(k, j, depth);
+        if k == 0 || k == self.bands.len() - 1 {
+            line
+        } else {
+            line - self.reach
+        }
+    }
+
+    /// `depth` steps over the bands of `blocks` blocks, doing `work`.
+    fn run(&self, depth: usize, blocks: usize, work: &Work<'_>) -> Finite {
+        let bands = self.bands.len() - 1;
+        let progress: Vec<BandProgress> = (0..bands).map(|_| BandProgress::default()).collect();
+        sweep::top_down(bands, |k| {
+            let above = progress.get(k + 1);
+            self.run_band(k, depth, blocks, work, &progress[k], above)
+        })
+    }
+
+    /// Band `k`'s part of a sweep of `depth` steps over `blocks` blocks: the rows of step `j`
+    /// over `[row_line(k, j), row_line(k + 1, j))` and its slices over
+    /// `[slice_line(k, j), slice_line(k + 1, j))`, each step one reach behind the one before,
+    /// then the steps' ends past the band's top boundary once the band above has done what
+    /// they read there (`above`: its progress).
+    fn run_band(
+        &self,
+        k: usize,
+        depth: usize,
+        blocks: usize,
+        work: &Work<'_>,
+        progress: &BandProgress,
+        above: Option<&BandProgress>,
+    ) -> Finite {
+        let r = self.reach;
+        let row_line = |k: usize, j: usize| self.row_line(k, j, depth).min(blocks);
+        let slice_line = |k: usize, j: usize| self.slice_line(k, j, depth).min(blocks);
+        let mut front = Front {
+            rows: std::array::from_fn(|j| row_line(k, j.max(1))),
+            slices: std::array::from_fn(|j| slice_line(k, j.max(1))),
+            finite: [true; sweep::DEPTH + 1],
+            work,
+            progress,
+        };
+        for at in row_line(k, 1) + 1..=row_line(k + 1, 1) {
+            front.rows_to(1, at);
+            front.slices_to(1, front.rows[1]);
+            for j in 2..=depth {
+                // Rows read the positions of step j - 1 up to a reach past them, and overwrite
+                // the rows that step j - 1's slices up to a reach past them sum.
+                let end = front.slices[j - 1].saturating_sub(r);
+                front.rows_to(j, end.min(row_line(k + 1, j)));
+                front.slices_to(j, front.rows[j]);
+            }
+        }
+        for j in 1..=depth {
+            let (row_end, slice_end) = (row_line(k + 1, j), slice_line(k + 1, j));
+            if let Some(above) = above.filter(|_| j > 1) {
+                // Up to row_end, rows read the positions of step j - 1 a reach past it, the
+                // band above's, and overwrite the rows of step j - 1 that its slices there sum.
+                above
+                    .slices
+                    .wait_for(j - 1, slice_end.min(slice_line(k + 2, j - 1)));
+            }
+            front.rows_to(j, row_end);
+            if let Some(above) = above {
+                // Slices up to slice_end sum the band above's rows of step j up to it.
+                above.rows.wait_for(j, slice_end.min(row_line(k + 2, j)));
+            }
+            front.slices_to(j, slice_end);
+        }
+        front.finite
+    }
     /// The sweep over `rows` (each block's first spring row, and the end of the last) with
     /// `threads` threads, or `None` where it cannot run or would not pay: a spring with an end
     /// in a block before its row's, or rows reaching too far for bands at least `4 DEPTH`
@@ -470,10 +582,12 @@ impl Outputs {
 
 #[cfg(test)]
 mod tests {
+    use hooke_core::Solver;
     use hooke_core::scene::{MeshSection, Scene};
     use hooke_testkit::benchmark_scene;
 
-    use crate::{CpuSolver, Method};
+    use super::*;
+    use crate::{CpuSolver, Method, Topology};
 
     /// A scatter solver that steps block by block, or one that never does; one that sweeps
     /// several steps at a time where it can, or one that never does.
@@ -550,6 +664,62 @@ mod tests {
                 plain.assert_steps_alike(&mut swept, &[4, 1, 2, 3, 7, 9], &what);
             }
         }
+    }
+
+    #[test]
+    fn a_band_waits_for_the_band_above_before_its_steps_cross_into_it() {
+        // The band above starts its first step's rows late, and its slices later still, so
+        // the band below reaches the blocks past which it reads that band's rows and
+        // positions first: it must wait for each, or its states are not those of plain steps.
+        let [(mesh, vertices), _] = meshes();
+        let scene = benchmark_scene(mesh, vertices);
+        let mut plain = solver(&scene, 2, false, false);
+        let mut swept = solver(&scene, 2, true, true);
+        let blocks = swept.blocks.clone().expect("blocks");
+        let plan = blocks.sweep.clone().expect("a sweep");
+        assert_eq!(plan.bands.len() - 1, 2);
+        let depth = 4; // even: the result lands in `current`, as plain steps leave it
+        plain.step(depth as u32).expect("stable");
+        let (late_rows, late_slices) = (plan.row_line(1, 1, depth), plan.slice_line(1, 1, depth));
+        let pause = || std::thread::sleep(std::time::Duration::from_millis(100));
+        let reads_points = swept.reads_points;
+        let buffers = Buffers::of(&mut swept, reads_points);
+        let (isa, integrator) = (swept.options.instruction_set, &swept.integrator);
+        let Topology::Scatter {
+            springs,
+            incidence,
+            spring_forces,
+        } = &mut swept.topology
+        else {
+            panic!("scatter");
+        };
+        let tables = (&*springs, &*incidence);
+        let finite = swept.pool.install(|| {
+            blocks.with_work(isa, tables, spring_forces, integrator, &buffers, |work| {
+                let rows = |j: usize, range: Range<usize>| {
+                    if j == 1 && range.start == late_rows {
+                        pause();
+                    }
+                    (work.rows)(j, range);
+                };
+                let slices = |j: usize, range: Range<usize>| {
+                    if j == 1 && range.start == late_slices {
+                        pause();
+                    }
+                    (work.slices)(j, range)
+                };
+                let slow = Work {
+                    rows: &rows,
+                    slices: &slices,
+                };
+                plan.run(depth, blocks.rows.len() - 1, &slow)
+            })
+        });
+        assert!(finite.iter().all(|&f| f));
+        assert!(
+            hooke_testkit::state_of(&plain) == hooke_testkit::state_of(&swept),
+            "the swept state differs"
+        );
     }
 
     #[test]

@@ -204,7 +204,7 @@ unsafe impl Sync for Buffers {}
 impl Buffers {
     /// The buffers of `solver`'s sweep: `current` and `next` in turn, with their points when
     /// the force pass reads them.
-    fn of(solver: &mut CpuSolver, reads_points: bool) -> Self {
+    pub(crate) fn of(solver: &mut CpuSolver, reads_points: bool) -> Self {
         let points = |rows: &mut Vec<[Point; LANES]>| reads_points.then_some(rows.as_mut_ptr());
         Self {
             positions: [
@@ -287,15 +287,10 @@ impl Sweep {
     ) -> Finite {
         let slices = buffers.slices;
         let progress: Vec<Progress> = (0..self.bands).map(|_| Progress::default()).collect();
-        // Bands are taken from the top down, so a band's upper neighbour, the only one it
-        // waits for, has always been taken by a thread that is running it.
-        let untaken = AtomicUsize::new(self.bands);
-        let bands = (0..self.bands).into_par_iter().map(|_| {
-            let k = untaken.fetch_sub(1, Ordering::Relaxed) - 1;
+        top_down(self.bands, |k| {
             let above = progress.get(k + 1);
             self.run_band(k, depth, slices, buffers, kernel, &progress[k], above)
-        });
-        bands.reduce(|| [true; DEPTH + 1], both)
+        })
     }
 
     /// Band `k`'s part of the sweep: step `j` over `[line(k, j), line(k + 1, j))`, each step
@@ -322,7 +317,7 @@ impl Sweep {
                 // SAFETY: the schedule of the module docs.
                 finite[j] &= unsafe { buffers.step(j, reached[j]..limit, kernel) };
                 reached[j] = limit;
-                progress.reached[j].store(limit, Ordering::Release);
+                progress.publish(j, limit);
             }
         };
         let (mut at, top) = (line(k, 1), line(k + 1, 1));
@@ -350,19 +345,37 @@ impl Sweep {
     }
 }
 
-/// How far one band's steps have got: per step (1-based), the slice below which it is done.
-/// Aligned to two cache lines (adjacent-line prefetching fetches lines in pairs), so that two
-/// bands' stores never contend for one line.
+/// Runs `band(k)` for every band `k < bands` in parallel, the bands taken from the top down, so
+/// a band's upper neighbour, the only one it waits for, has always been taken by a thread that
+/// is running it. Per step, whether every band's results were finite.
+pub(crate) fn top_down(bands: usize, band: impl Fn(usize) -> Finite + Sync) -> Finite {
+    let untaken = AtomicUsize::new(bands);
+    let finite = (0..bands).into_par_iter().map(|_| {
+        let k = untaken.fetch_sub(1, Ordering::Relaxed) - 1;
+        band(k)
+    });
+    finite.reduce(|| [true; DEPTH + 1], both)
+}
+
+/// How far one band's steps have got: per step (1-based), the slice (or scatter's block) below
+/// which it is done. Aligned to two cache lines (adjacent-line prefetching fetches lines in
+/// pairs), so that two bands' stores never contend for one line.
 #[derive(Default)]
 #[repr(align(128))]
-struct Progress {
+pub(crate) struct Progress {
     reached: [AtomicUsize; DEPTH + 1],
 }
 
 impl Progress {
+    /// Tells the band below that step `j` is done below `slice`; what the step wrote there is
+    /// visible to it once [`Progress::wait_for`] returns.
+    pub(crate) fn publish(&self, j: usize, slice: usize) {
+        self.reached[j].store(slice, Ordering::Release);
+    }
+
     /// Waits until step `j` is done below `slice`. The band it belongs to has been taken by a
     /// running thread (see [`Sweep::run`]) and does those slices first, without waiting.
-    fn wait_for(&self, j: usize, slice: usize) {
+    pub(crate) fn wait_for(&self, j: usize, slice: usize) {
         let mut spins = 0u32;
         while self.reached[j].load(Ordering::Acquire) < slice {
             spins += 1;
