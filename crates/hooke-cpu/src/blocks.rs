@@ -17,27 +17,26 @@
 //! disjoint memory. Every vertex sums the same forces in the same order as in the plain step,
 //! so the states are bit-identical (tested).
 //!
-//! **Several steps per sweep.** Where nothing acts between one step's forces and the next
-//! (see `sweep`), [`Blocks::sweep`] advances the blocks up to [`DEPTH`] steps while they are
-//! in the cache, as the gather's sweep does with slices. A block's rows reach at most `r`
-//! blocks past it (its springs' ends), so the slices of block `k` sum rows of blocks
-//! `k - r..=k`. Step `j` of a sweep (1-based) computes its rows from the positions of step
-//! `j - 1` and integrates from them into the buffer of step `j - 2`. Each band's steps lean
-//! into the band above, as the gather's do: band `k`'s slices of step `j` cover
-//! `[s_k + (j-1) r, s_{k+1} + (j-1) r)` (`s_k` its lower boundary, moved down to even out the
-//! bands' work), and its rows start a reach lower, where its slices of step `j - 1` start,
-//! so its slices sum only its own rows and its rows read positions of its own slices (or the
-//! sweep's first; at the mesh's ends rows and slices start and end together). Within the band, step `j`
-//! trails step `j - 1` by `r` blocks: the positions its rows read are then final, and no
-//! slice of step `j - 1` still sums the rows it overwrites. Past its top boundary a band
-//! then finishes each step, rows once the band above has done its slices of step `j - 1` a
-//! reach past them (whose positions they read, and whose rows of step `j - 1` they
-//! overwrite), slices once that band has done its rows of step `j` up to them. Bands are
-//! taken from the top down, and a band does its lowest blocks without waiting, so the band
-//! waited for is always running and soon there. An earlier schedule stopped each band's
-//! steps short of its ends and ran the strips left at each boundary in a second pass, one
-//! thread per boundary (see the README). Every vertex sums the same forces in the same
-//! order: the states are bit-identical (tested).
+//! **Several steps per sweep.** Where nothing acts between one step's forces and the next (see
+//! `sweep`), [`Blocks::sweep`] advances the blocks up to [`DEPTH`] steps while they are in the
+//! cache, as the gather's sweep does with slices. A block's rows reach at most `r` blocks past
+//! it (its springs' ends), so the slices of block `k` sum rows of blocks `k - r..=k`. Step `j`
+//! of a sweep (1-based) computes its rows from the positions of step `j - 1` and integrates
+//! from them into the buffer of step `j - 2`. Each band's steps lean into the band above, as
+//! the gather's do: band `k`'s slices of step `j` cover `[s_k + (j-1) r, s_{k+1} + (j-1) r)`
+//! (`s_k` its lower boundary, moved down to even out the bands' work), and its rows start a
+//! reach lower, where its slices of step `j - 1` start, so its slices sum only its own rows and
+//! its rows read positions of its own slices (or the sweep's first; at the mesh's ends rows and
+//! slices start and end together). Within the band, step `j` trails step `j - 1` by `r` blocks:
+//! the positions its rows read are then final, and no slice of step `j - 1` still sums the rows
+//! it overwrites. Past its top boundary a band then finishes each step, rows once the band
+//! above has done its slices of step `j - 1` a reach past them (whose positions they read, and
+//! whose rows of step `j - 1` they overwrite), slices once that band has done its rows of step
+//! `j` up to them. Bands are taken from the top down, and a band does its lowest blocks without
+//! waiting, so the band waited for is always running and soon there. An earlier schedule
+//! stopped each band's steps short of its ends and ran the strips left at each boundary in a
+//! second pass, one thread per boundary (see the README). Every vertex sums the same forces in
+//! the same order: the states are bit-identical (tested).
 
 use std::ops::Range;
 
@@ -405,6 +404,7 @@ impl BlockSweep {
         }
         front.finite
     }
+
     /// The sweep over `rows` (each block's first spring row, and the end of the last) with
     /// `threads` threads, or `None` where it cannot run or would not pay: a spring with an end
     /// in a block before its row's, or rows reaching too far for bands at least `4 DEPTH`
