@@ -47,6 +47,7 @@ use crate::kernels::{
     SpringForces, SpringTable, VertexChunk,
 };
 use crate::layout::LANES;
+use crate::ring::ForceRing;
 use crate::sweep::{self, Buffers, Finite, Progress};
 use crate::tables::SPRING_BLOCK;
 use crate::view::{Floats, Points, Positions};
@@ -216,20 +217,60 @@ impl Blocks {
 impl Blocks {
     /// `depth` steps (2..=[`DEPTH`]) in one sweep over the blocks, a band per task (see the
     /// module docs). Per step, whether every new position was finite.
+    #[allow(clippy::too_many_arguments)] // a step's inputs, passed on to its kernels
     pub(crate) fn sweep(
         &self,
         depth: usize,
         isa: InstructionSet,
         tables: (&SpringTable, &IncidenceTable),
         spring_forces: &mut SpringForces,
+        ring: Option<&ForceRing>,
         integrator: &Integrator,
         buffers: &Buffers,
     ) -> Finite {
         let plan = self.sweep.as_ref().expect("a sweep plan");
         let blocks = self.rows.len() - 1;
-        self.with_work(isa, tables, spring_forces, integrator, buffers, |work| {
+        let forces = Forces::for_sweep(spring_forces, ring);
+        self.with_work(isa, tables, forces, integrator, buffers, |work| {
             plan.run(depth, blocks, work)
         })
+    }
+
+    /// A buffer for the spring forces of this plan's sweeps (see `ring`): pages repeating a
+    /// ring in each band's interior, where no other band reads or writes, of as many bytes as
+    /// a band's steps have forces in use at once. `None` where the plan does not sweep or the
+    /// system cannot map it.
+    pub(crate) fn force_ring(&self, spring_forces: &SpringForces) -> Option<ForceRing> {
+        let plan = self.sweep.as_ref()?;
+        let (arrays, row_bytes, rows) = match spring_forces {
+            SpringForces::Axes(axes) => (3, std::mem::size_of::<Block>(), axes.blocks()),
+            SpringForces::Points(points) => {
+                (1, std::mem::size_of::<[Point; LANES]>(), points.len())
+            }
+        };
+        let (r, blocks, bands) = (plan.reach, self.rows.len() - 1, plan.bands.len() - 1);
+        // Around a boundary b, both bands touch blocks [R(b, 1), S(b, depth)) of any sweep of
+        // up to DEPTH steps (see `BlockSweep::slice_line`); these zones keep pages of their own.
+        let zone =
+            |b: usize| b.saturating_sub((DEPTH + 1) * r + 1)..(b + DEPTH * r + 1).min(blocks);
+        let interiors: Vec<Range<usize>> = (0..bands)
+            .map(|k| {
+                let start = if k == 0 { 0 } else { zone(plan.bands[k]).end };
+                let end = if k + 1 == bands {
+                    blocks
+                } else {
+                    zone(plan.bands[k + 1]).start
+                };
+                let rows = self.rows[start.min(end)]..self.rows[end];
+                rows.start * row_bytes..rows.end * row_bytes
+            })
+            .collect();
+        // The rows a band has in use at once span at most DEPTH reaches of blocks and the block
+        // being written: step j's from a reach below its slices' front to its rows' front,
+        // which trails step j - 1's by a reach (see `BlockSweep::run_band`).
+        let widest = self.rows.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
+        let ring_bytes = (DEPTH * r + 1) * widest * row_bytes;
+        ForceRing::new(arrays, rows * row_bytes, &interiors, ring_bytes)
     }
 
     /// `f` of the work of a sweep's steps over `buffers` (see [`Work`]).
@@ -237,12 +278,11 @@ impl Blocks {
         &self,
         isa: InstructionSet,
         (springs, incidence): (&SpringTable, &IncidenceTable),
-        spring_forces: &mut SpringForces,
+        forces: Forces,
         integrator: &Integrator,
         buffers: &Buffers,
         f: impl FnOnce(&Work<'_>) -> R,
     ) -> R {
-        let forces = Forces::new(spring_forces);
         // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
         let view = unsafe { forces.view() };
         let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
@@ -487,6 +527,26 @@ impl Forces {
         }
     }
 
+    /// Where a sweep keeps its forces: in `ring` (see `ring`), sized as `spring_forces`, if
+    /// there is one, else in `spring_forces`.
+    fn for_sweep(spring_forces: &mut SpringForces, ring: Option<&ForceRing>) -> Self {
+        let Some(ring) = ring else {
+            return Self::new(spring_forces);
+        };
+        match spring_forces {
+            SpringForces::Axes(axes) => Self {
+                rows: axes.blocks(),
+                axes: Some(std::array::from_fn(|axis| ring.base(axis).cast())),
+                points: None,
+            },
+            SpringForces::Points(rows) => Self {
+                rows: rows.len(),
+                axes: None,
+                points: Some(ring.base(0).cast()),
+            },
+        }
+    }
+
     /// Rows `rows` to write.
     ///
     /// # Safety
@@ -695,7 +755,10 @@ mod tests {
         };
         let tables = (&*springs, &*incidence);
         let finite = swept.pool.install(|| {
-            blocks.with_work(isa, tables, spring_forces, integrator, &buffers, |work| {
+            // The forces in a ring where the system maps one, as sweeps keep them.
+            let ring = blocks.force_ring(spring_forces);
+            let forces = Forces::for_sweep(spring_forces, ring.as_ref());
+            blocks.with_work(isa, tables, forces, integrator, &buffers, |work| {
                 let rows = |j: usize, range: Range<usize>| {
                     if j == 1 && range.start == late_rows {
                         pause();

@@ -18,6 +18,7 @@ mod external;
 pub mod kernels;
 mod lanes;
 pub mod layout;
+mod ring;
 pub mod simd;
 mod sweep;
 mod tables;
@@ -190,6 +191,8 @@ pub struct CpuSolver {
     sweep: Option<sweep::Sweep>,
     /// How a scatter step runs block by block on a large mesh (see [`blocks`]).
     blocks: Option<blocks::Blocks>,
+    /// Where the spring forces of sweeps over `blocks` go, made at the first (see [`ring`]).
+    force_ring: std::sync::OnceLock<Option<ring::ForceRing>>,
     steps_taken: u64,
 }
 
@@ -289,6 +292,7 @@ impl CpuSolver {
             stiffness_entries: None,
             sweep: None,
             blocks: None,
+            force_ring: std::sync::OnceLock::new(),
             model: model.clone(),
             steps_taken: 0,
         };

@@ -432,7 +432,19 @@ impl CpuSolver {
             } => {
                 let blocks = self.blocks.as_ref().expect("can_sweep checked the plan");
                 let tables = (&*springs, &*incidence);
-                blocks.sweep(depth, isa, tables, spring_forces, integrator, &buffers)
+                let ring = self
+                    .force_ring
+                    .get_or_init(|| blocks.force_ring(spring_forces));
+                let ring = ring.as_ref();
+                blocks.sweep(
+                    depth,
+                    isa,
+                    tables,
+                    spring_forces,
+                    ring,
+                    integrator,
+                    &buffers,
+                )
             }
         };
         // Stop at the first step with a result that is not finite, as single steps would.
