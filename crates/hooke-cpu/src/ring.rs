@@ -4,8 +4,8 @@
 //! them at its vertices a few blocks later, then overwrites them at the next step: at any
 //! moment a band needs only the forces of the last few blocks of each step. In a buffer as
 //! large as the mesh's springs (12 bytes a spring on a grid, 151 MB at 2048^2), every sweep
-//! still reads each line from memory before writing it and writes it back after, about as
-//! many bytes as the rest of the sweep moves. A [`ForceRing`] is a buffer of the same size
+//! still reads each line from memory before writing it and writes it back after: by our count
+//! about as many bytes as the rest of the sweep moves. A [`ForceRing`] is a buffer of the same size
 //! whose pages, inside each band's interior, map cyclically onto a few physical pages: the
 //! kernels index it exactly as the plain buffer, and its lines stay in the caches.
 //!
@@ -34,10 +34,11 @@ unsafe impl Send for Mapping {}
 unsafe impl Sync for Mapping {}
 
 impl ForceRing {
-    /// `arrays` arrays of `bytes` bytes each, whose pages inside each range of `rings` repeat
-    /// a ring of its own (the same for every array), large enough that no two bytes in use at
-    /// once share a page when they lie within `ring_bytes` of each other; pages outside the
-    /// ranges are ordinary zeroed memory. `None` where the system cannot map it.
+    /// `arrays` arrays of `bytes` bytes each. In each array, the pages inside each range of
+    /// `rings` repeat a ring of physical pages of their own, enough of them that bytes in use
+    /// at once never share one as long as they lie within `ring_bytes` of each other; the
+    /// other pages are ordinary memory. All read zero until written. `None` where the system
+    /// cannot map it.
     pub(crate) fn new(
         arrays: usize,
         bytes: usize,
