@@ -11,7 +11,8 @@
 //!
 //! Pages where two bands meet, and the zero row past the springs' that padding entries read,
 //! keep pages of their own. Linux only (`memfd_create`, `mmap` with `MAP_FIXED`); elsewhere, or
-//! if the system refuses, sweeps use the plain buffer.
+//! if the system refuses, sweeps use the plain buffer. The rings are a shared file, so a
+//! process forked from the one that mapped them maps its own before it sweeps.
 
 use std::ops::Range;
 
@@ -19,6 +20,8 @@ use std::ops::Range;
 /// repeat a ring of physical pages (see the module docs).
 pub(crate) struct ForceRing {
     arrays: Vec<Mapping>,
+    /// The process that mapped it: a forked child shares its ring pages with the parent.
+    process: u32,
 }
 
 /// One array's address range, unmapped on drop. (Elsewhere than on Linux none is made.)
@@ -48,7 +51,16 @@ impl ForceRing {
         let arrays = (0..arrays)
             .map(|_| Mapping::new(bytes, rings, ring_bytes))
             .collect::<Option<Vec<_>>>()?;
-        Some(Self { arrays })
+        Some(Self {
+            arrays,
+            process: std::process::id(),
+        })
+    }
+
+    /// Whether this process mapped it. A process forked after the mapping shares the rings'
+    /// pages with its parent (they are a shared file), so it must map its own before a sweep.
+    pub(crate) fn is_this_process(&self) -> bool {
+        self.process == std::process::id()
     }
 
     /// The start of array `array`: `bytes` bytes, readable and writable, zero where never
@@ -167,5 +179,25 @@ mod tests {
         // Outside the rings: each page its own. Inside: the last write to each slot of its ring.
         let pages: [u8; 14] = std::array::from_fn(read);
         assert_eq!(pages, [1, 2, 7, 8, 7, 8, 7, 8, 9, 10, 13, 12, 13, 14]);
+        assert!(ring.is_this_process());
+    }
+
+    #[test]
+    fn a_forked_process_knows_the_ring_is_not_its_own() {
+        let page = usize::try_from(unsafe { libc::sysconf(libc::_SC_PAGESIZE) }).unwrap();
+        let pages = 0..4 * page;
+        let ring = ForceRing::new(1, 4 * page, std::slice::from_ref(&pages), page)
+            .expect("Linux maps rings");
+        // SAFETY: the child only asks for its process id and exits at once.
+        match unsafe { libc::fork() } {
+            0 => unsafe { libc::_exit(i32::from(ring.is_this_process())) },
+            child => {
+                assert!(child > 0, "fork failed");
+                let mut status = 0;
+                assert_eq!(unsafe { libc::waitpid(child, &mut status, 0) }, child);
+                assert!(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0);
+                assert!(ring.is_this_process());
+            }
+        }
     }
 }

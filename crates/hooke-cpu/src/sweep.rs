@@ -47,6 +47,7 @@ use rayon::prelude::*;
 use crate::blocks::Blocks;
 use crate::kernels::{self, Block, GatherTable, Point, VertexChunk};
 use crate::layout::LANES;
+use crate::ring::ForceRing;
 use crate::view::Positions;
 use crate::{CpuSolver, Topology};
 
@@ -413,6 +414,11 @@ impl CpuSolver {
     /// single steps, and an error names the first step whose results were not all finite.
     pub(crate) fn step_sweep(&mut self, depth: usize) -> Result<(), SimError> {
         assert!((2..=self.sweep_depth()).contains(&depth) && self.can_sweep());
+        let forked = |ring: &Option<ForceRing>| ring.as_ref().is_some_and(|r| !r.is_this_process());
+        if self.force_ring.get().is_some_and(forked) {
+            // Its pages are shared with the process it was forked from: map new ones.
+            self.force_ring = std::sync::OnceLock::new();
+        }
         let isa = self.options.instruction_set;
         let reads_points = self.refresh_points();
         let buffers = Buffers::of(self, reads_points);
