@@ -530,20 +530,17 @@ impl Forces {
     /// Where a sweep keeps its forces: in `ring` (see `ring`), sized as `spring_forces`, if
     /// there is one, else in `spring_forces`.
     fn for_sweep(spring_forces: &mut SpringForces, ring: Option<&ForceRing>) -> Self {
+        let plain = Self::new(spring_forces);
         let Some(ring) = ring else {
-            return Self::new(spring_forces);
+            return plain;
         };
-        match spring_forces {
-            SpringForces::Axes(axes) => Self {
-                rows: axes.blocks(),
-                axes: Some(std::array::from_fn(|axis| ring.base(axis).cast())),
-                points: None,
-            },
-            SpringForces::Points(rows) => Self {
-                rows: rows.len(),
-                axes: None,
-                points: Some(ring.base(0).cast()),
-            },
+        // The same arrays and rows, at the ring's addresses.
+        Self {
+            axes: plain
+                .axes
+                .map(|_| std::array::from_fn(|axis| ring.base(axis).cast())),
+            points: plain.points.map(|_| ring.base(0).cast()),
+            rows: plain.rows,
         }
     }
 
