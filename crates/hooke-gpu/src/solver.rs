@@ -137,7 +137,12 @@ impl Forces {
                 (Some(springs), Accumulator::Blend(sum))
             }
         };
-        let integrate = Integrate::new(ctx, model, state, &forces, extra_forces, fixed_point)?;
+        let own_sums = match &accumulator {
+            Accumulator::Atomic(sum) => sum.own_sums(),
+            _ => None,
+        };
+        let sums = (&forces, own_sums);
+        let integrate = Integrate::new(ctx, model, state, sums, extra_forces, fixed_point)?;
         Ok(Forces::Scatter {
             springs,
             accumulation: Box::new(accumulator),
@@ -332,7 +337,11 @@ impl GpuSolver {
                 // Topology, scratch, and the per-vertex force sums (which the integration and
                 // the accumulation's kernels hold) where there are any.
                 let (topology, scratch, sums) = match accumulation.as_ref() {
-                    Accumulator::Atomic(_) => (0, 0, vec4s(n)),
+                    // Over a stencil, the own springs' sums besides.
+                    Accumulator::Atomic(a) => {
+                        let own = a.own_sums().map_or(0, |_| vec4s(n));
+                        (0, 0, vec4s(n) + own)
+                    }
                     Accumulator::Incidence(a) => (a.bytes(), 0, vec4s(n)),
                     Accumulator::InIntegration { bytes } => (*bytes, 0, 0),
                     Accumulator::Blend(a) => (0, a.bytes(), vec4s(n)),

@@ -7,8 +7,10 @@
 // Two entry points: `main`, one invocation per spring record; `stencil`, for structured
 // meshes whose springs cannot tear (see stencil.rs), one invocation per vertex owning the
 // springs whose kind points to a higher index: it computes their forces, subtracts each at
-// its far end and adds their sum at its own end once (4 atomic adds a spring instead of 6,
-// and no spring record read).
+// its far end, and writes their sum at its own end to `own_sums` with a plain store, which
+// the integration adds (3 atomic adds a spring instead of 6, and no spring record read: an
+// atomic add at a vertex's own end, a line its workgroup's neighbours were adding to, cost
+// more on lavapipe than the far ends' did, see the README).
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read> springs: array<Spring>;
@@ -18,6 +20,8 @@
 // The stencil's: per vertex its mask (in z, see `stencil_mask`), and the kinds.
 @group(0) @binding(5) var<storage, read> scales: array<vec4<f32>>;
 @group(0) @binding(6) var<uniform> stencil_kinds: Stencil;
+// The stencil's: per vertex the sum of the springs it owns (xyz + unused), written every step.
+@group(0) @binding(7) var<storage, read_write> own_sums: array<vec4<f32>>;
 
 fn add_at(vertex: u32, force: vec3<f32>) {
     atomicAdd(&accumulated[4u * vertex + 0u], force.x);
@@ -46,18 +50,14 @@ fn stencil(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     let x = positions[vertex].xyz;
     let mask = stencil_mask(scales[vertex].z);
     var own = vec3<f32>(0.0);
-    var owns = false;
     for (var k = 0u; k < stencil_kinds.len; k++) {
         let kind = stencil_kinds.kinds[k];
         if (mask & (1u << k)) != 0u && kind.offset > 0 {
             let neighbor = u32(i32(vertex) + kind.offset);
             let force = spring_force(x, positions[neighbor].xyz, kind.stiffness * u.stiffness_scale, kind.rest_length);
             own += force;
-            owns = true;
             add_at(neighbor, -force);
         }
     }
-    if owns {
-        add_at(vertex, own);
-    }
+    own_sums[vertex] = vec4<f32>(own, 0.0);
 }

@@ -8,8 +8,9 @@
 // `integrate_fixed.wgsl` turns them back into newtons.
 //
 // Two entry points, as in `accumulate_atomic_f32.wgsl`: `main` per spring record, `stencil`
-// per vertex of a structured mesh, which adds its own springs' integers once (their integer
-// sum: the same integers reach every vertex, so the same bits as `main`).
+// per vertex of a structured mesh, which stores its own springs' integers' sum in `own_sums`
+// for the integration to add (the same integers reach every vertex, so the same bits as
+// `main`).
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read> springs: array<Spring>;
@@ -20,6 +21,8 @@
 // The stencil's: per vertex its mask (in z, see `stencil_mask`), and the kinds.
 @group(0) @binding(5) var<storage, read> scales: array<vec4<f32>>;
 @group(0) @binding(6) var<uniform> stencil_kinds: Stencil;
+// The stencil's: per vertex the integer sum of the springs it owns, written every step.
+@group(0) @binding(7) var<storage, read_write> own_sums: array<vec4<i32>>;
 
 fn to_fixed(force: vec3<f32>) -> vec3<i32> {
     let scaled = force * u.fixed_scale;
@@ -58,18 +61,14 @@ fn stencil(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
     let x = positions[vertex].xyz;
     let mask = stencil_mask(scales[vertex].z);
     var own = vec3<i32>(0);
-    var owns = false;
     for (var k = 0u; k < stencil_kinds.len; k++) {
         let kind = stencil_kinds.kinds[k];
         if (mask & (1u << k)) != 0u && kind.offset > 0 {
             let neighbor = u32(i32(vertex) + kind.offset);
             let q = to_fixed(spring_force(x, positions[neighbor].xyz, kind.stiffness * u.stiffness_scale, kind.rest_length));
             own += q;
-            owns = true;
             add_at(neighbor, -q);
         }
     }
-    if owns {
-        add_at(vertex, own);
-    }
+    own_sums[vertex] = vec4<i32>(own, 0);
 }

@@ -16,11 +16,14 @@ pub struct Integrate {
 }
 
 impl Integrate {
+    /// Integrates under `forces`, integer sums with `fixed_point`; plus `own_sums` where an
+    /// accumulation stored each vertex's own springs' sum apart (see
+    /// [`super::accumulate_atomic::AccumulateAtomic::own_sums`]).
     pub fn new(
         context: &GpuContext,
         model: &GpuModel,
         state: &GpuState,
-        forces: &wgpu::Buffer,
+        (forces, own_sums): (&wgpu::Buffer, Option<&wgpu::Buffer>),
         extra_forces: &wgpu::Buffer,
         fixed_point: bool,
     ) -> Result<Self, GpuError> {
@@ -29,15 +32,22 @@ impl Integrate {
         } else {
             ("integrate", super::INTEGRATE)
         };
+        let entry_point = match own_sums {
+            Some(_) => "with_own_sums",
+            None => "main",
+        };
         let kernel = Kernel::new(
             context,
             label,
             source,
-            "main",
+            entry_point,
             model.uniforms.vertex_count,
             |current| {
                 let mut resources = verlet_bindings(model, state, extra_forces, current);
                 resources.push((5, forces.as_entire_binding()));
+                if let Some(own_sums) = own_sums {
+                    resources.push((8, own_sums.as_entire_binding()));
+                }
                 resources
             },
         )?;
@@ -135,8 +145,15 @@ mod tests {
             buffer
         };
         let (forces, extra_forces) = (upload("forces", &spring), upload("extra", &extra));
-        let integrate = Integrate::new(&context, &model, &gpu_state, &forces, &extra_forces, false)
-            .expect("kernel");
+        let integrate = Integrate::new(
+            &context,
+            &model,
+            &gpu_state,
+            (&forces, None),
+            &extra_forces,
+            false,
+        )
+        .expect("kernel");
         model.uniforms.has_extra = 1;
         model.write_uniforms(&context);
         run(&context, |e| {
@@ -182,7 +199,7 @@ mod tests {
                 let sum = AccumulateIncidence::new(&context, &scene.model, &buffers, spring_forces)
                     .expect("kernel");
                 let integrate =
-                    Integrate::new(&context, &model, &gpu_state, &forces, &extra, false)
+                    Integrate::new(&context, &model, &gpu_state, (&forces, None), &extra, false)
                         .expect("kernel");
                 run(&context, |e| {
                     springs.kernel.encode(e, current, None);

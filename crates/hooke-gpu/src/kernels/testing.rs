@@ -247,7 +247,15 @@ pub fn accumulated(
         Accumulation::AtomicF32 => {
             let sum = AccumulateAtomic::new(&context, &buffers, &gpu_state, false).expect("kernel");
             run(&context, |e| sum.encode(e, current, None));
-            read_vec3s(&context, &forces, n)
+            let far = read_vec3s(&context, &forces, n);
+            // Over a stencil, each vertex's own springs' sum is stored apart.
+            match sum.own_sums() {
+                Some(own) => {
+                    let own = read_vec3s(&context, own, n);
+                    far.iter().zip(own).map(|(far, own)| *far + own).collect()
+                }
+                None => far,
+            }
         }
         Accumulation::AtomicFixed => {
             let sum = AccumulateAtomic::new(&context, &buffers, &gpu_state, true).expect("kernel");
@@ -255,7 +263,17 @@ pub fn accumulated(
             // Integer sums, in units of 1 / fixed_scale newtons (as integrate_fixed.wgsl
             // reads them).
             let bytes = read_back(&context, &[(&forces, vec4s(n))]).expect("read back");
-            let sums: Vec<[i32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
+            let mut sums: Vec<[i32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
+            // Over a stencil, each vertex's own springs' sum is stored apart.
+            if let Some(own) = sum.own_sums() {
+                let bytes = read_back(&context, &[(own, vec4s(n))]).expect("read back");
+                let own: Vec<[i32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
+                for (sum, own) in sums.iter_mut().zip(own) {
+                    for axis in 0..3 {
+                        sum[axis] = sum[axis].wrapping_add(own[axis]);
+                    }
+                }
+            }
             let scale = model.uniforms.fixed_scale;
             sums.iter()
                 .map(|q| DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64) / f64::from(scale))
