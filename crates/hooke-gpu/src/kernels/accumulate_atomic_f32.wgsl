@@ -8,9 +8,7 @@
 // meshes whose springs cannot tear (see stencil.rs), one invocation per vertex owning the
 // springs whose kind points to a higher index: it computes their forces, subtracts each at
 // its far end, and writes their sum at its own end to `own_sums` with a plain store, which
-// the integration adds (3 atomic adds a spring instead of 6, and no spring record read: an
-// atomic add at a vertex's own end, a line its workgroup's neighbours were adding to, cost
-// more on lavapipe than the far ends' did, see the README).
+// the integration adds (3 atomic adds a spring instead of 6, and no spring record read).
 
 @group(0) @binding(0) var<uniform> u: StepUniforms;
 @group(0) @binding(1) var<storage, read> springs: array<Spring>;
