@@ -262,13 +262,14 @@ pub fn accumulated(
             run(&context, |e| sum.encode(e, current, None));
             // Integer sums, in units of 1 / fixed_scale newtons (as integrate_fixed.wgsl
             // reads them).
-            let bytes = read_back(&context, &[(&forces, vec4s(n))]).expect("read back");
-            let mut sums: Vec<[i32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
+            let integers = |buffer| {
+                let bytes = read_back(&context, &[(buffer, vec4s(n))]).expect("read back");
+                bytemuck::pod_collect_to_vec::<u8, [i32; 4]>(&bytes[0])
+            };
+            let mut sums = integers(&forces);
             // Over a stencil, each vertex's own springs' sum is stored apart.
             if let Some(own) = sum.own_sums() {
-                let bytes = read_back(&context, &[(own, vec4s(n))]).expect("read back");
-                let own: Vec<[i32; 4]> = bytemuck::pod_collect_to_vec(&bytes[0]);
-                for (sum, own) in sums.iter_mut().zip(own) {
+                for (sum, own) in sums.iter_mut().zip(integers(own)) {
                     for axis in 0..3 {
                         sum[axis] = sum[axis].wrapping_add(own[axis]);
                     }
