@@ -334,8 +334,7 @@ impl Culling {
         };
         self.suspect_patches.clear();
         self.suspect_patches.resize(self.patches.len(), false);
-        let near_contact = self.near_pairs(&check);
-        let far = self.far_pairs(&check);
+        let (near_contact, far) = self.near_and_far_pairs(&check);
         if !near_contact && !far.iter().any(|&(_, found)| found.contact) {
             return Proof::Clear;
         }
@@ -528,31 +527,45 @@ impl Culling {
     }
 
     /// Checks every near pair (all of them, so each keeps its cache up to date), flagging the
-    /// patches of suspect ones. Returns whether any is within the distance. Each pair renews
-    /// its own cache in parallel; only the few that found something or were measured again
-    /// come back to tell their patches.
-    fn near_pairs<P: Points + ?Sized>(&mut self, check: &Check<P>) -> bool {
+    /// patches of suspect ones, and searches the far pairs. Returns whether any near pair is
+    /// within the distance, and the suspect far pairs with what each shows.
+    ///
+    /// The two run side by side: both only read the patches, and the far search's top levels
+    /// run on one thread (a node's pairs across its halves are searched after both halves),
+    /// which the near pairs fill the other threads around. (In contact at 512^2 on 2 threads,
+    /// the two took 1-4% less time together this way than one after the other, measured
+    /// on alternate steps of the same runs.) Each near pair renews its own cache in
+    /// parallel; only the few that found something or were measured again come back to tell
+    /// their patches.
+    fn near_and_far_pairs<P: Points + ?Sized>(
+        &mut self,
+        check: &Check<P>,
+    ) -> (bool, Vec<([u32; 2], Found)>) {
         let mut near = std::mem::take(&mut self.near);
         let this = &*self;
-        let news: Vec<([u32; 2], Found, Option<f32>)> = near
-            .par_iter_mut()
-            .filter_map(|pair| {
-                let (found, measured) = this.near_pair(pair, check);
-                pair.suspect = found.suspect;
-                if let Some(gap) = measured {
-                    let [p, q] = pair.patches;
-                    let (a, b) = (&this.patches[p as usize], &this.patches[q as usize]);
-                    pair.gap = gap;
-                    pair.offset = a.moved() - b.moved();
-                    pair.renewed = [a.renewed, b.renewed];
-                }
-                (found != Found::default() || measured.is_some()).then_some((
-                    pair.patches,
-                    found,
-                    measured,
-                ))
-            })
-            .collect();
+        let (news, far) = rayon::join(
+            || {
+                near.par_iter_mut()
+                    .filter_map(|pair| {
+                        let (found, measured) = this.near_pair(pair, check);
+                        pair.suspect = found.suspect;
+                        if let Some(gap) = measured {
+                            let [p, q] = pair.patches;
+                            let (a, b) = (&this.patches[p as usize], &this.patches[q as usize]);
+                            pair.gap = gap;
+                            pair.offset = a.moved() - b.moved();
+                            pair.renewed = [a.renewed, b.renewed];
+                        }
+                        (found != Found::default() || measured.is_some()).then_some((
+                            pair.patches,
+                            found,
+                            measured,
+                        ))
+                    })
+                    .collect::<Vec<_>>()
+            },
+            || this.far_pairs(check),
+        );
         self.near = near;
         let mut contact = false;
         for (patches, found, measured) in news {
@@ -567,7 +580,7 @@ impl Culling {
                 }
             }
         }
-        contact
+        (contact, far)
     }
 
     /// What one near pair shows, and its gap if it had to be measured again.
