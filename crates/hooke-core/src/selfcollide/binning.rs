@@ -17,6 +17,12 @@ use super::wide::wide;
 /// A vertex in sorted order: its key in the high 32 bits, its index in the low 32.
 pub type Entry = u64;
 
+/// The entry of `vertex` with `key`.
+#[inline(always)]
+pub fn entry(key: u32, vertex: u32) -> Entry {
+    (Entry::from(key) << 32) | Entry::from(vertex)
+}
+
 /// The key of a sorted entry.
 pub fn key_of(entry: Entry) -> u32 {
     (entry >> 32) as u32
@@ -125,6 +131,11 @@ impl Binning {
         &self.entries
     }
 
+    /// The entries of the last sort, in sorted order.
+    pub fn sorted(&self) -> &[Entry] {
+        &self.entries
+    }
+
     /// [`Binning::sort`] of vertices `0..keys.len()` by the keys given.
     pub fn sort_keys(&mut self, keys: &[u32], bits: u32) -> &[Entry] {
         self.sort(keys.len(), bits, |first, out| {
@@ -159,8 +170,8 @@ fn key_chunk(
                 let start = first + b * KEY_BATCH;
                 let batch = &mut batch[..out.len()];
                 keys(start, batch);
-                for ((entry, &key), v) in out.iter_mut().zip(batch.iter()).zip(start..) {
-                    *entry = (Entry::from(key) << 32) | v as Entry;
+                for ((slot, &key), v) in out.iter_mut().zip(batch.iter()).zip(start..) {
+                    *slot = entry(key, v as u32);
                     counts[digit(key, 0, mask)] += 1;
                 }
             }

@@ -19,6 +19,7 @@
 //! holds depends only on which vertices share the cell. Everything here is float32, the same arithmetic as the GPU's
 //! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
 
+mod ahead;
 mod awake;
 mod binning;
 mod culling;
@@ -32,6 +33,7 @@ use std::collections::HashMap;
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
+use ahead::Ahead;
 use awake::with_pool_awake;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
@@ -333,6 +335,8 @@ const MOST_UNPROVED: u32 = 64;
 #[derive(Debug)]
 pub struct Resolver {
     binning: Binning,
+    /// Every grid's sort of a step's local passes, made before the first (see `ahead`).
+    ahead: Ahead,
     culling: Culling,
     /// The step's positions in mesh order, copied only when full passes run.
     positions: Vec<Vec3>,
@@ -359,6 +363,7 @@ impl Default for Resolver {
     fn default() -> Self {
         Self {
             binning: Binning::default(),
+            ahead: Ahead::default(),
             culling: Culling::default(),
             positions: Vec::new(),
             nearby: Nearby::default(),
@@ -451,8 +456,15 @@ impl Resolver {
             local &= self.culling.suspects().len() * self.local_at_most <= n;
             let moves = if local {
                 self.local_passes += 1;
+                let listed = self.nearby.vertices().len();
                 self.nearby
                     .cover(&self.culling, points, config.cell_size as f32);
+                if self.nearby.vertices().len() != listed {
+                    self.ahead.clear();
+                }
+                if k == 0 && config.grids > 1 && rayon::current_num_threads() > 1 {
+                    self.sort_ahead(config);
+                }
                 let moves = self.local_pass(weights, adjacency, config, k);
                 self.nearby.apply(&moves);
                 self.widen_past_movers(&moves);
@@ -478,6 +490,7 @@ impl Resolver {
             all_moves.extend(moves);
         }
         self.nearby.clear();
+        self.ahead.clear();
         for v in self.movers.drain(..) {
             self.travelled[v as usize] = 0.0;
         }
@@ -510,6 +523,16 @@ impl Resolver {
         }
     }
 
+    /// Sorts the nearby vertices by every grid's keys at once, a grid a thread, for the local
+    /// passes to repair (see `ahead`): each sort alone runs on one thread.
+    fn sort_ahead(&mut self, config: &SelfCollision) {
+        let n = self.nearby.vertices().len();
+        let keys: Vec<GridKeys> = (0..config.grids)
+            .map(|k| GridKeys::with_bits((self.local_key_bits)(n), config, k))
+            .collect();
+        self.ahead.sort_all(self.nearby.positions(), &keys);
+    }
+
     /// Grid `k`'s pass over the nearby vertices, testing the suspects.
     fn local_pass(
         &mut self,
@@ -525,7 +548,12 @@ impl Resolver {
         // moves come in this sort's order, not a full pass's; each vertex moves once a pass.
         let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
         let keys = GridKeys::with_bits((self.local_key_bits)(vertices.len()), config, k);
-        let sorted = sorted_for_grid(&mut self.binning, positions, &keys);
+        let nearby = &self.nearby;
+        let moved = self.movers.iter().map(|&v| nearby.slot(v));
+        let sorted = match self.ahead.order(k as usize, positions, moved, &keys) {
+            Some(sorted) => sorted,
+            None => sorted_for_grid(&mut self.binning, positions, &keys),
+        };
         let suspects = self.nearby.suspects();
         let pass = Pass {
             keys: &keys,

@@ -223,6 +223,11 @@ impl Nearby {
         }
     }
 
+    /// Vertex `v`'s (covered) index in [`Nearby::vertices`].
+    pub fn slot(&self, v: u32) -> u32 {
+        self.slots[v as usize]
+    }
+
     /// Where vertex `v` (covered) is now.
     pub fn position(&self, v: u32) -> Vec3 {
         self.positions[self.slots[v as usize] as usize]
