@@ -37,15 +37,20 @@ pub(super) struct Ahead {
 }
 
 impl Ahead {
-    /// Sorts `positions` (the nearby vertices', by slot) by every grid's keys at once, a grid a
-    /// task.
-    pub fn sort_all(&mut self, positions: &[Vec3], keys: &[GridKeys]) {
-        self.binnings.resize_with(keys.len(), Binning::default);
+    /// Sorts `positions` (the nearby vertices', by slot) by the keys of every one of `grids`
+    /// grids at once (grid `k`'s: `keys(k)`), a grid a task.
+    pub fn sort_all(
+        &mut self,
+        positions: &[Vec3],
+        grids: u32,
+        keys: impl Fn(u32) -> GridKeys + Sync,
+    ) {
+        self.binnings.resize_with(grids as usize, Binning::default);
         self.binnings
             .par_iter_mut()
-            .zip(keys)
-            .for_each(|(binning, keys)| {
-                super::sorted_for_grid(binning, positions, keys);
+            .zip(0..grids)
+            .for_each(|(binning, k)| {
+                super::sorted_for_grid(binning, positions, &keys(k));
             });
         self.positions.clear();
         self.positions.extend_from_slice(positions);
@@ -147,7 +152,9 @@ mod tests {
                 .map(|k| GridKeys::with_bits(bits, &config, k))
                 .collect();
             let mut ahead = Ahead::default();
-            ahead.sort_all(&start, &keys);
+            ahead.sort_all(&start, config.grids, |k| {
+                GridKeys::with_bits(bits, &config, k)
+            });
             let mut positions = start.clone();
             let mut moved = Vec::new();
             for (k, keys) in keys.iter().enumerate() {

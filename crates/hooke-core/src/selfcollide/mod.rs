@@ -526,11 +526,11 @@ impl Resolver {
     /// Sorts the nearby vertices by every grid's keys at once, a grid a thread, for the local
     /// passes to repair (see `ahead`): each sort alone runs on one thread.
     fn sort_ahead(&mut self, config: &SelfCollision) {
-        let n = self.nearby.vertices().len();
-        let keys: Vec<GridKeys> = (0..config.grids)
-            .map(|k| GridKeys::with_bits((self.local_key_bits)(n), config, k))
-            .collect();
-        self.ahead.sort_all(self.nearby.positions(), &keys);
+        let bits = (self.local_key_bits)(self.nearby.vertices().len());
+        self.ahead
+            .sort_all(self.nearby.positions(), config.grids, |k| {
+                GridKeys::with_bits(bits, config, k)
+            });
     }
 
     /// Grid `k`'s pass over the nearby vertices, testing the suspects.

@@ -230,7 +230,7 @@ impl Nearby {
 
     /// Where vertex `v` (covered) is now.
     pub fn position(&self, v: u32) -> Vec3 {
-        self.positions[self.slots[v as usize] as usize]
+        self.positions[self.slot(v) as usize]
     }
 }
 
