@@ -27,8 +27,9 @@ pub(super) struct Ahead {
     binnings: Vec<Binning>,
     /// The positions the sorts were keyed from, by slot.
     positions: Vec<Vec3>,
-    /// Whether the sorts hold the current nearby vertices (cleared when they are listed
-    /// again, which renumbers their slots).
+    /// Whether the sorts are this step's (cleared when it ends). Within a step, the nearby
+    /// vertices are listed again (renumbering their slots) only when a covering adds
+    /// patches, which adds vertices: a count unlike the sorted positions' says so.
     valid: bool,
     /// A repaired order, and the entries it takes out and puts in.
     repaired: Vec<Entry>,
@@ -57,7 +58,7 @@ impl Ahead {
         self.valid = true;
     }
 
-    /// Forgets the sorts: the nearby vertices were listed again (or the step is over).
+    /// Forgets the sorts: the step is over.
     pub fn clear(&mut self) {
         self.valid = false;
     }

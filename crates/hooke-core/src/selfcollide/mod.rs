@@ -456,12 +456,8 @@ impl Resolver {
             local &= self.culling.suspects().len() * self.local_at_most <= n;
             let moves = if local {
                 self.local_passes += 1;
-                let listed = self.nearby.vertices().len();
                 self.nearby
                     .cover(&self.culling, points, config.cell_size as f32);
-                if self.nearby.vertices().len() != listed {
-                    self.ahead.clear();
-                }
                 if k == 0 && config.grids > 1 && rayon::current_num_threads() > 1 {
                     self.sort_ahead(config);
                 }
@@ -526,11 +522,16 @@ impl Resolver {
     /// Sorts the nearby vertices by every grid's keys at once, a grid a thread, for the local
     /// passes to repair (see `ahead`): each sort alone runs on one thread.
     fn sort_ahead(&mut self, config: &SelfCollision) {
-        let bits = (self.local_key_bits)(self.nearby.vertices().len());
+        let bits = self.local_bits();
         self.ahead
             .sort_all(self.nearby.positions(), config.grids, |k| {
                 GridKeys::with_bits(bits, config, k)
             });
+    }
+
+    /// The key bits of a local pass over the nearby vertices.
+    fn local_bits(&self) -> u32 {
+        (self.local_key_bits)(self.nearby.vertices().len())
     }
 
     /// Grid `k`'s pass over the nearby vertices, testing the suspects.
@@ -547,7 +548,7 @@ impl Resolver {
         // vertex order, and a window takes only the cell's vertices (see `window_of`). The
         // moves come in this sort's order, not a full pass's; each vertex moves once a pass.
         let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
-        let keys = GridKeys::with_bits((self.local_key_bits)(vertices.len()), config, k);
+        let keys = GridKeys::with_bits(self.local_bits(), config, k);
         let nearby = &self.nearby;
         let moved = self.movers.iter().map(|&v| nearby.slot(v));
         let sorted = match self.ahead.order(k as usize, positions, moved, &keys) {
