@@ -107,9 +107,9 @@ impl Patch {
     }
 }
 
-/// What the near pairs' cached gaps need of a patch each step, 40 bytes kept apart from
-/// [`Patch`] (two cache lines), which the 20,000 near pairs of a 512^2 sheet read twice each
-/// a step.
+/// What the near pairs' cached gaps need of a patch each step: 40 bytes, kept apart from the
+/// two cache lines of its [`Patch`], of which each of the 20,000 near pairs of a 512^2 sheet
+/// reads two every step.
 #[derive(Clone, Copy, Debug, Default)]
 struct Standing {
     /// [`Patch::moved`], m.
