@@ -608,10 +608,11 @@ impl Culling {
             let pair = &mut near[i];
             pair.suspect = found.suspect;
             if let Some(gap) = measured {
+                // From the standings `cached_clear` compares them with.
                 let [p, q] = pair.patches;
-                let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
+                let (a, b) = (&self.standings[p as usize], &self.standings[q as usize]);
                 pair.gap = gap;
-                pair.offset = a.moved() - b.moved();
+                pair.offset = a.moved - b.moved;
                 pair.renewed = [a.renewed, b.renewed];
             }
             contact |= found.contact;
