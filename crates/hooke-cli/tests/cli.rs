@@ -1024,9 +1024,17 @@ fn bench_shows_the_collision_phase_with_self_collision() {
         if row["self_collision"] == 2 {
             let collision = row["collision_ms"].as_f64().expect("collision phase");
             assert!(collision > 0.0, "{row}");
+            // Its parts: each step's sum is within its collision phase, so the medians are too.
+            let parts = &row["self_collision_parts_ms"];
+            let whole = parts["whole"].as_f64().expect("parts");
+            assert!(whole > 0.0 && whole <= collision, "{row}");
+            for part in ["proof", "covering", "sorting", "window_tests", "moving"] {
+                assert!(parts[part].as_f64().is_some_and(|t| t <= whole), "{row}");
+            }
         } else {
             assert!(row["self_collision"].is_null(), "{row}");
             assert!(row["collision_ms"].is_null(), "{row}");
+            assert!(row["self_collision_parts_ms"].is_null(), "{row}");
         }
     }
     let paired = report["paired"].as_array().expect("paired");

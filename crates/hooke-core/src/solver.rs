@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use crate::collide::Collider;
-use crate::selfcollide::SelfCollision;
+use crate::selfcollide::{PartTimes, SelfCollision};
 use crate::{Control, Material, State};
 
 /// Time of each phase of one step, as the paper's Table 2 splits it.
@@ -17,6 +17,8 @@ pub struct PhaseTimes {
     pub integration: Duration,
     /// Colliders and self-collision (zero when there are none).
     pub collision: Duration,
+    /// The self-collision's parts, where a solver times them (the CPU's); within `collision`.
+    pub self_collision: Option<PartTimes>,
 }
 
 impl PhaseTimes {

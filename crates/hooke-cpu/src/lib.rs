@@ -476,9 +476,10 @@ impl CpuSolver {
         let start = Instant::now();
         let bad_ball = self.collide();
         self.move_handles();
-        self.self_collide();
+        let self_collision = self.self_collide();
         if let Some(times) = times {
             times.collision = start.elapsed();
+            times.self_collision = self_collision;
         }
         self.finish_step(all_finite)?;
         self.check_balls(bad_ball)

@@ -588,6 +588,29 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
     }
 }
 
+#[test]
+fn a_phase_timed_step_times_the_self_collision_by_part() {
+    // From the folding cloth's crumpled state, where the step must push pairs apart (the
+    // test above): the proof runs, then passes sort and test windows.
+    let scene = hooke_testkit::folding_cloth();
+    let mut folder = cpu(&scene, Method::Gather, 2);
+    folder.set_self_collision(None).expect("off");
+    folder.step(FOLD_STEPS).expect("stable");
+    let (times, _) = folder.step_timed().expect("stable");
+    assert_eq!(times.self_collision, None, "no self-collision, no parts");
+    let folded = state_of(&folder);
+    let mut solver = cpu(&scene, Method::Gather, 2);
+    solver.write_state(&folded);
+    let (times, _) = solver.step_timed().expect("stable");
+    let parts = times.self_collision.expect("parts");
+    let zero = std::time::Duration::ZERO;
+    assert!(
+        parts.proof > zero && parts.sorting > zero && parts.window_tests > zero,
+        "{parts:?}"
+    );
+    assert!(parts.total() <= times.collision, "{parts:?} in {times:?}");
+}
+
 /// Self-collision's passes run on every thread of the pool, with the threads kept awake
 /// between them (`selfcollide::awake`); which thread runs which task must not change a bit.
 /// The bench's 256^2 sheet after 2,000 steps has enough vertices in contact that the sorts

@@ -727,7 +727,8 @@ impl Simulation {
     /// One step with each phase timed, in ms (`force_accumulation` only where the sums take
     /// passes of their own: CPU scatter, GPU blend, and GPU incidence where its rows do not
     /// pad cheaply, as on irregular meshes), and how
-    /// (`"timestamps"` on a GPU that has them, else `"wall-clock"`).
+    /// (`"timestamps"` on a GPU that has them, else `"wall-clock"`). `self_collision` holds
+    /// its parts within `collision` where the solver times them (the CPU's), else None.
     fn step_timed<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let (times, source) = py.detach(|| self.with(|s| s.step_timed().or_raise()))?;
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
@@ -737,6 +738,20 @@ impl Simulation {
         dict.set_item("force_accumulation", times.force_accumulation.map(ms))?;
         dict.set_item("integration", ms(times.integration))?;
         dict.set_item("collision", ms(times.collision))?;
+        let parts = match times.self_collision {
+            Some(parts) => {
+                let dict = PyDict::new(py);
+                dict.set_item("proof", ms(parts.proof))?;
+                dict.set_item("covering", ms(parts.covering))?;
+                dict.set_item("sorting", ms(parts.sorting))?;
+                dict.set_item("window_tests", ms(parts.window_tests))?;
+                dict.set_item("moving", ms(parts.moving))?;
+                dict.set_item("total", ms(parts.total()))?;
+                Some(dict)
+            }
+            None => None,
+        };
+        dict.set_item("self_collision", parts)?;
         dict.set_item("total", ms(times.total()))?;
         let source = match source {
             hooke_core::TimingSource::Timestamps => "timestamps",

@@ -397,6 +397,10 @@ def test_colliders_and_self_collision_from_dicts() -> None:
     clearance = np.linalg.norm(p - [0.5, 0.6, 0.5], axis=1) - 0.2
     assert clearance.min() > 0.0 and p[:, 1].min() > 0.0
     assert [c["kind"] for c in sim.colliders()] == ["sphere", "plane"]
+    timed = sim.step_timed()
+    parts = timed["self_collision"]
+    assert parts is not None and 0 < parts["total"] <= timed["collision"], timed
+    assert parts["proof"] + parts["sorting"] + parts["window_tests"] > 0, parts
     sim.set_self_collision(None)
     sim.step(10)
 
@@ -421,6 +425,7 @@ def test_reports_match_the_cli_scene_facts() -> None:
     assert sim.memory()["total"] > 0
     timed = sim.step_timed()
     assert timed["total"] > 0 and timed["source"] == "wall-clock"
+    assert timed["self_collision"] is None
     strain, spring = sim.max_strain()
     assert 0 <= spring < sim.spring_count and strain >= 0
     assert sim.springs().shape == (12033, 2)

@@ -37,6 +37,7 @@ use comfy_table::Table;
 use hooke::{EngineError, MemoryReport, Simulation, SolverChoice};
 use hooke_core::diagnostics::check_health;
 use hooke_core::scene::{MeshSection, Scene, SceneFile};
+use hooke_core::selfcollide::PartTimes;
 use hooke_core::selfcollide::{self, SelfCollision};
 use hooke_core::{PhaseTimes, SimError, TimingSource};
 use hooke_cpu::kernels::InstructionSet;
@@ -142,6 +143,8 @@ struct Row {
     integration_ms: Option<f64>,
     /// Collider and self-collision passes, when the workload has them.
     collision_ms: Option<f64>,
+    /// The self-collision's parts, where the solver times them (the CPU's).
+    self_collision_parts_ms: Option<SelfCollisionParts>,
     phased_total_ms: f64,
     /// Median of the rounds' medians of the fused step.
     total_ms: f64,
@@ -502,19 +505,46 @@ struct PhaseMedians {
     force_accumulation: Option<f64>,
     integration: f64,
     collision: Option<f64>,
+    self_collision: Option<SelfCollisionParts>,
     total: f64,
+}
+
+/// Medians of the self-collision's parts over the phase-timed steps, ms (see
+/// `hooke_core::selfcollide::PartTimes`). Each part's median is taken on its own, so they
+/// need not add up to `whole`.
+#[derive(Debug, Serialize)]
+struct SelfCollisionParts {
+    proof: f64,
+    covering: f64,
+    sorting: f64,
+    window_tests: f64,
+    moving: f64,
+    whole: f64,
 }
 
 impl PhaseMedians {
     fn of(phases: &[PhaseTimes], accumulates: bool, collides: bool) -> Self {
-        let of = |phase: fn(&PhaseTimes) -> Duration| median(phases.iter().map(phase).collect());
+        let of =
+            |phase: &dyn Fn(&PhaseTimes) -> Duration| median(phases.iter().map(phase).collect());
+        let timed_parts = !phases.is_empty() && phases.iter().all(|p| p.self_collision.is_some());
+        let part = |part: fn(&PartTimes) -> Duration| {
+            of(&|p: &PhaseTimes| p.self_collision.as_ref().map(part).unwrap_or_default())
+        };
         Self {
-            force_calculation: of(|p| p.force_calculation),
+            force_calculation: of(&|p| p.force_calculation),
             force_accumulation: accumulates
-                .then(|| of(|p| p.force_accumulation.unwrap_or_default())),
-            integration: of(|p| p.integration),
-            collision: collides.then(|| of(|p| p.collision)),
-            total: of(PhaseTimes::total),
+                .then(|| of(&|p| p.force_accumulation.unwrap_or_default())),
+            integration: of(&|p| p.integration),
+            collision: collides.then(|| of(&|p| p.collision)),
+            self_collision: timed_parts.then(|| SelfCollisionParts {
+                proof: part(|p| p.proof),
+                covering: part(|p| p.covering),
+                sorting: part(|p| p.sorting),
+                window_tests: part(|p| p.window_tests),
+                moving: part(|p| p.moving),
+                whole: part(PartTimes::total),
+            }),
+            total: of(&PhaseTimes::total),
         }
     }
 }
@@ -603,6 +633,7 @@ fn measure(
         force_accumulation_ms: medians.force_accumulation,
         integration_ms: integrates.then_some(medians.integration),
         collision_ms: medians.collision,
+        self_collision_parts_ms: medians.self_collision,
         phased_total_ms: medians.total,
         total_ms,
         total_rounds_ms: timed.rounds_ms.clone(),
@@ -780,6 +811,7 @@ fn print_report(report: &Report) {
         ]);
     }
     println!("{}", table(t));
+    print_self_collision_parts(report);
     print_paired(report);
     println!(
         "gather, and the gpu's atomic-f32 and atomic-fixed: force calc includes the per-vertex sum (no separate accumulation; gather's as in the paper's Table 2); the gpu's gather also integrates in that pass."
@@ -843,6 +875,48 @@ fn with_range(median: f64, rounds: &[f64], digits: usize) -> String {
     format!("{median:.digits$} ({smallest:.digits$}-{largest:.digits$})")
 }
 
+/// The self-collision's parts, in a table of their own, where any row has them.
+fn print_self_collision_parts(report: &Report) {
+    let rows: Vec<(&Row, &SelfCollisionParts)> = report
+        .rows
+        .iter()
+        .filter_map(|r| Some((r, r.self_collision_parts_ms.as_ref()?)))
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    let mut t = Table::new();
+    t.set_header(vec![
+        "mesh",
+        "backend",
+        "method",
+        "proof ms",
+        "covering ms",
+        "sorting ms",
+        "window tests ms",
+        "moving ms",
+        "self-collision ms",
+    ]);
+    for (r, parts) in rows {
+        let ms = |v: f64| format!("{v:.3}");
+        t.add_row(vec![
+            r.mesh.clone(),
+            r.backend.to_owned(),
+            r.method.clone(),
+            ms(parts.proof),
+            ms(parts.covering),
+            ms(parts.sorting),
+            ms(parts.window_tests),
+            ms(parts.moving),
+            ms(parts.whole),
+        ]);
+    }
+    println!(
+        "self-collision by part: medians over the phase-timed steps, each part's on its own (part of collision ms above)"
+    );
+    println!("{}", table(t));
+}
+
 /// The paired ratios, in a table of their own.
 fn print_paired(report: &Report) {
     if report.paired.is_empty() {
@@ -897,6 +971,7 @@ mod tests {
             force_accumulation_ms: None,
             integration_ms: None,
             collision_ms: None,
+            self_collision_parts_ms: None,
             phased_total_ms: 0.0,
             total_ms: median_ms(rounds.to_vec()),
             total_rounds_ms: rounds.to_vec(),

@@ -25,10 +25,12 @@ mod binning;
 mod culling;
 mod disjoint;
 mod nearby;
+mod parts;
 mod points;
 mod wide;
 
 use std::collections::HashMap;
+use std::time::Instant;
 
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
@@ -38,6 +40,7 @@ use awake::with_pool_awake;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
 use nearby::Nearby;
+pub use parts::PartTimes;
 pub use points::{BlockPoints, LANES, Points};
 
 use crate::{Adjacency, Model};
@@ -357,6 +360,8 @@ pub struct Resolver {
     backoff: u32,
     /// Steps run without a proof.
     unproved_steps: u64,
+    /// Where the last step's time went.
+    parts: PartTimes,
 }
 
 impl Default for Resolver {
@@ -374,6 +379,7 @@ impl Default for Resolver {
             local_key_bits: key_bits,
             unproved: 0,
             backoff: 0,
+            parts: PartTimes::default(),
             unproved_steps: 0,
         }
     }
@@ -402,6 +408,7 @@ impl Resolver {
         adjacency: &Adjacency,
         config: &SelfCollision,
     ) -> Vec<(u32, Vec3)> {
+        self.parts = PartTimes::default();
         // Dozens of short parallel passes: the pool's other threads wait for them awake.
         with_pool_awake(|| self.prove_then_pass(points, weights, adjacency, config))
     }
@@ -420,10 +427,12 @@ impl Resolver {
             self.unproved_steps += 1;
             false
         } else {
-            match self
+            let start = Instant::now();
+            let proof = self
                 .culling
-                .prove(points, adjacency, config.distance as f32)
-            {
+                .prove(points, adjacency, config.distance as f32);
+            self.parts.proof = start.elapsed();
+            match proof {
                 Proof::Clear => {
                     self.backoff = 0;
                     return Vec::new();
@@ -456,20 +465,28 @@ impl Resolver {
             local &= self.culling.suspects().len() * self.local_at_most <= n;
             let moves = if local {
                 self.local_passes += 1;
+                let start = Instant::now();
                 self.nearby
                     .cover(&self.culling, points, config.cell_size as f32);
+                self.parts.covering += start.elapsed();
                 if k == 0 && config.grids > 1 && rayon::current_num_threads() > 1 {
+                    let start = Instant::now();
                     self.sort_ahead(config);
+                    self.parts.sorting += start.elapsed();
                 }
                 let moves = self.local_pass(weights, adjacency, config, k);
+                let start = Instant::now();
                 self.nearby.apply(&moves);
                 self.widen_past_movers(&moves);
+                self.parts.moving += start.elapsed();
                 moves
             } else {
                 if !copied {
                     // Every position in mesh order, moved as the local passes so far moved them.
+                    let start = Instant::now();
                     points.copy_into(&mut self.positions);
                     apply(&mut self.positions, &all_moves);
+                    self.parts.covering += start.elapsed();
                     copied = true;
                 }
                 let moves = full_pass(
@@ -479,8 +496,11 @@ impl Resolver {
                     adjacency,
                     config,
                     k,
+                    &mut self.parts,
                 );
+                let start = Instant::now();
                 apply(&mut self.positions, &moves);
+                self.parts.moving += start.elapsed();
                 moves
             };
             all_moves.extend(moves);
@@ -551,10 +571,13 @@ impl Resolver {
         let keys = GridKeys::with_bits(self.local_bits(), config, k);
         let nearby = &self.nearby;
         let moved = self.movers.iter().map(|&v| nearby.slot(v));
+        let start = Instant::now();
         let sorted = match self.ahead.order(k as usize, positions, moved, &keys) {
             Some(sorted) => sorted,
             None => sorted_for_grid(&mut self.binning, positions, &keys),
         };
+        let sorted_at = Instant::now();
+        self.parts.sorting += sorted_at - start;
         let suspects = self.nearby.suspects();
         let pass = Pass {
             keys: &keys,
@@ -563,11 +586,18 @@ impl Resolver {
             adjacency,
             config,
         };
-        pass.moves(
+        let moves = pass.moves(
             sorted,
             |slot| vertices[slot as usize],
             |slot| suspects[slot as usize],
-        )
+        );
+        self.parts.window_tests += sorted_at.elapsed();
+        moves
+    }
+
+    /// Where the last step's self-collision spent its time.
+    pub fn part_times(&self) -> PartTimes {
+        self.parts
     }
 
     /// The culling, with its counts of steps cleared and not.
@@ -595,15 +625,25 @@ fn resolve_with(
     config: &SelfCollision,
 ) -> Vec<(u32, Vec3)> {
     let mut all_moves = Vec::new();
+    let mut untimed = PartTimes::default();
     for k in 0..config.grids {
-        let moves = full_pass(binning, positions, weights, adjacency, config, k);
+        let moves = full_pass(
+            binning,
+            positions,
+            weights,
+            adjacency,
+            config,
+            k,
+            &mut untimed,
+        );
         apply(positions, &moves);
         all_moves.extend(moves);
     }
     all_moves
 }
 
-/// Grid `k`'s pass over every vertex: its moves, not yet applied.
+/// Grid `k`'s pass over every vertex: its moves, not yet applied. Its sorting and window
+/// tests are added to `parts`.
 fn full_pass(
     binning: &mut Binning,
     positions: &[Vec3],
@@ -611,9 +651,13 @@ fn full_pass(
     adjacency: &Adjacency,
     config: &SelfCollision,
     k: u32,
+    parts: &mut PartTimes,
 ) -> Vec<(u32, Vec3)> {
     let keys = GridKeys::new(positions.len(), config, k);
+    let start = Instant::now();
     let sorted = sorted_for_grid(binning, positions, &keys);
+    let sorted_at = Instant::now();
+    parts.sorting += sorted_at - start;
     let pass = Pass {
         keys: &keys,
         positions,
@@ -621,7 +665,9 @@ fn full_pass(
         adjacency,
         config,
     };
-    pass.moves(sorted, |v| v, |_| true)
+    let moves = pass.moves(sorted, |v| v, |_| true);
+    parts.window_tests += sorted_at.elapsed();
+    moves
 }
 
 /// What one grid's pass tests its windows with.

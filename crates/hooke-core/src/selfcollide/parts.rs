@@ -1,0 +1,28 @@
+//! Where a step's self-collision spends its time, part by part: what `hooke bench` prints
+//! beside its collision phase, so that a figure says what limits it.
+
+use std::time::Duration;
+
+/// One step's self-collision, part by part, wall clock on the calling thread (a part's
+/// parallel passes count once, however many threads run them).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PartTimes {
+    /// The culling's proof (see [`super::Culling::prove`]); zero on a step run without one.
+    pub proof: Duration,
+    /// Listing the vertices that local passes sort (the suspects and those that may share a
+    /// cell with one), or copying every position for full passes.
+    pub covering: Duration,
+    /// Sorting by each grid's keys: ahead of the passes, repaired, or anew.
+    pub sorting: Duration,
+    /// Testing the windows of sorted order, which finds the moves.
+    pub window_tests: Duration,
+    /// Applying the moves to the passes' positions and counting how far vertices travel; a
+    /// solver adds the time it takes to write them back.
+    pub moving: Duration,
+}
+
+impl PartTimes {
+    pub fn total(&self) -> Duration {
+        self.proof + self.covering + self.sorting + self.window_tests + self.moving
+    }
+}
