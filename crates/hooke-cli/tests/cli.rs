@@ -1028,7 +1028,15 @@ fn bench_shows_the_collision_phase_with_self_collision() {
             let parts = &row["self_collision_parts_ms"];
             let whole = parts["whole"].as_f64().expect("parts");
             assert!(whole > 0.0 && whole <= collision, "{row}");
-            for part in ["proof", "covering", "sorting", "window_tests", "moving"] {
+            let parts_named = [
+                "measuring",
+                "pairs",
+                "covering",
+                "sorting",
+                "window_tests",
+                "moving",
+            ];
+            for part in parts_named {
                 assert!(parts[part].as_f64().is_some_and(|t| t <= whole), "{row}");
             }
         } else {

@@ -741,7 +741,8 @@ impl Simulation {
         let parts = match times.self_collision {
             Some(parts) => {
                 let dict = PyDict::new(py);
-                dict.set_item("proof", ms(parts.proof))?;
+                dict.set_item("measuring", ms(parts.measuring))?;
+                dict.set_item("pairs", ms(parts.pairs))?;
                 dict.set_item("covering", ms(parts.covering))?;
                 dict.set_item("sorting", ms(parts.sorting))?;
                 dict.set_item("window_tests", ms(parts.window_tests))?;

@@ -400,7 +400,7 @@ def test_colliders_and_self_collision_from_dicts() -> None:
     timed = sim.step_timed()
     parts = timed["self_collision"]
     assert parts is not None and 0 < parts["total"] <= timed["collision"], timed
-    assert parts["proof"] + parts["sorting"] + parts["window_tests"] > 0, parts
+    assert parts["measuring"] + parts["sorting"] + parts["window_tests"] > 0, parts
     sim.set_self_collision(None)
     sim.step(10)
 

@@ -514,7 +514,8 @@ struct PhaseMedians {
 /// need not add up to `whole`.
 #[derive(Debug, Serialize)]
 struct SelfCollisionParts {
-    proof: f64,
+    measuring: f64,
+    pairs: f64,
     covering: f64,
     sorting: f64,
     window_tests: f64,
@@ -537,7 +538,8 @@ impl PhaseMedians {
             integration: of(&|p| p.integration),
             collision: collides.then(|| of(&|p| p.collision)),
             self_collision: timed_parts.then(|| SelfCollisionParts {
-                proof: part(|p| p.proof),
+                measuring: part(|p| p.measuring),
+                pairs: part(|p| p.pairs),
                 covering: part(|p| p.covering),
                 sorting: part(|p| p.sorting),
                 window_tests: part(|p| p.window_tests),
@@ -890,7 +892,8 @@ fn print_self_collision_parts(report: &Report) {
         "mesh",
         "backend",
         "method",
-        "proof ms",
+        "proof: measuring ms",
+        "proof: pairs ms",
         "covering ms",
         "sorting ms",
         "window tests ms",
@@ -903,7 +906,8 @@ fn print_self_collision_parts(report: &Report) {
             r.mesh.clone(),
             r.backend.to_owned(),
             r.method.clone(),
-            ms(parts.proof),
+            ms(parts.measuring),
+            ms(parts.pairs),
             ms(parts.covering),
             ms(parts.sorting),
             ms(parts.window_tests),

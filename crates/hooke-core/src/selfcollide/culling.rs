@@ -38,6 +38,8 @@
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
 //! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
 
+use std::time::{Duration, Instant};
+
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
@@ -198,6 +200,9 @@ pub struct Culling {
     pub uncleared: u64,
     /// Patches made suspect by [`Culling::widen`].
     pub widened: u64,
+    /// How long the last proof took to measure the patches (and to build itself, when it
+    /// did): the rest of it went to the pairs of patches.
+    measuring: Duration,
 }
 
 /// What a check found of some pairs: whether one is within the distance plus the margin
@@ -245,6 +250,11 @@ impl Culling {
             self.uncleared += 1;
         }
         proof
+    }
+
+    /// How long the last proof took to measure the patches; the rest went to their pairs.
+    pub fn measuring(&self) -> Duration {
+        self.measuring
     }
 
     /// The vertices of the last [`Proof::Local`]'s suspect patches.
@@ -339,13 +349,17 @@ impl Culling {
         adjacency: &Adjacency,
         distance: f32,
     ) -> Proof {
+        self.measuring = Duration::ZERO;
         if points.count() == 0 {
             return Proof::Clear;
         }
+        let start = Instant::now();
         if self.built_for != (points.count(), adjacency.neighbors.len()) {
             self.build(points, adjacency);
         }
-        let Some(scale) = self.measure_patches(points, distance) else {
+        let measured = self.measure_patches(points, distance);
+        self.measuring = start.elapsed();
+        let Some(scale) = measured else {
             return Proof::Nothing;
         };
         // Rounding: a few units in the last place of the largest coordinate in each quantity

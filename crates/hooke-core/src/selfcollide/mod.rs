@@ -431,7 +431,8 @@ impl Resolver {
             let proof = self
                 .culling
                 .prove(points, adjacency, config.distance as f32);
-            self.parts.proof = start.elapsed();
+            self.parts.measuring = self.culling.measuring();
+            self.parts.pairs = start.elapsed().saturating_sub(self.parts.measuring);
             match proof {
                 Proof::Clear => {
                     self.backoff = 0;

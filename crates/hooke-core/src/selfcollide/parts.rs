@@ -7,8 +7,12 @@ use std::time::Duration;
 /// parallel passes count once, however many threads run them).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PartTimes {
-    /// The culling's proof (see [`super::Culling::prove`]); zero on a step run without one.
-    pub proof: Duration,
+    /// The culling's proof (see [`super::Culling::prove`]), in two parts: measuring every
+    /// patch of vertices, then the pairs of patches (near pairs from their cached gaps or
+    /// measured again, far pairs searched) and listing the suspects. Both zero on a step run
+    /// without a proof.
+    pub measuring: Duration,
+    pub pairs: Duration,
     /// Listing the vertices that local passes sort (the suspects and those that may share a
     /// cell with one), or copying every position for full passes.
     pub covering: Duration,
@@ -22,7 +26,11 @@ pub struct PartTimes {
 }
 
 impl PartTimes {
+    pub fn proof(&self) -> Duration {
+        self.measuring + self.pairs
+    }
+
     pub fn total(&self) -> Duration {
-        self.proof + self.covering + self.sorting + self.window_tests + self.moving
+        self.proof() + self.covering + self.sorting + self.window_tests + self.moving
     }
 }
