@@ -552,10 +552,7 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
     // crumpled state, one folded without self-collision so many pairs need pushing apart:
     // same keys, same sort, same pushes.
     let scene = hooke_testkit::folding_cloth();
-    let mut folder = cpu(&scene, Method::Gather, 2);
-    folder.set_self_collision(None).expect("off");
-    folder.step(FOLD_STEPS).expect("stable");
-    let folded = state_of(&folder);
+    let folded = state_of(&folded_without_self_collision(&scene));
     let mut solvers = all_solvers(&scene);
     let mut states = Vec::new();
     for solver in &mut solvers {
@@ -588,14 +585,21 @@ fn self_collision_steps_agree_with_the_reference_from_a_folded_state() {
     }
 }
 
+/// The folding cloth `scene` folded for [`FOLD_STEPS`] without self-collision: crumpled, with
+/// many unjoined pairs too close.
+fn folded_without_self_collision(scene: &Scene) -> CpuSolver {
+    let mut folder = cpu(scene, Method::Gather, 2);
+    folder.set_self_collision(None).expect("off");
+    folder.step(FOLD_STEPS).expect("stable");
+    folder
+}
+
 #[test]
 fn a_phase_timed_step_times_the_self_collision_by_part() {
     // From the folding cloth's crumpled state, where the step must push pairs apart (the
     // test above): the proof runs, then passes sort and test windows.
     let scene = hooke_testkit::folding_cloth();
-    let mut folder = cpu(&scene, Method::Gather, 2);
-    folder.set_self_collision(None).expect("off");
-    folder.step(FOLD_STEPS).expect("stable");
+    let mut folder = folded_without_self_collision(&scene);
     let (times, _) = folder.step_timed().expect("stable");
     assert_eq!(times.self_collision, None, "no self-collision, no parts");
     let folded = state_of(&folder);
