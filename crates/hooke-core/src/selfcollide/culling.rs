@@ -55,8 +55,8 @@ pub const PATCH: usize = 64;
 /// of the distance. Smaller, fewer patches are suspect (fewer vertices covered, sorted and
 /// tested), but more vertices are pushed past it and widen the suspects. An eighth since
 /// 2026-12-03 (a quarter before): on an Intel Xeon VM, `hooke bench`'s self-collision row
-/// came to 2.1-2.3x the plain step at 128^2 against 3.0-3.2, and 2.9-3.3x at 512^2 against
-/// 3.2-3.6; a sixteenth was no better (see the README).
+/// came to a median of 2.28x the plain step at 128^2 against 3.16, and 3.17x at 512^2
+/// against 3.57 (eight runs each); a sixteenth was no better (see the README).
 pub const MARGIN: f32 = 0.125;
 
 /// What [`Culling::prove`] showed of one step's positions.
