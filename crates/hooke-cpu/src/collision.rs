@@ -1,8 +1,6 @@
 //! The collision phase of the CPU step: colliders (the rule of `hooke_core::collide`), dynamic
 //! balls, and self-collision (`hooke_core::selfcollide`).
 
-use std::time::Instant;
-
 use glam::{DVec3, Vec3};
 use hooke_core::{collide, handles, selfcollide};
 use rayon::prelude::*;
@@ -12,10 +10,11 @@ use crate::layout::LANES;
 
 impl CpuSolver {
     /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
-    /// mesh order so every solver sorts the same keys the same way. Returns where its time
-    /// went, or `None` without self-collision.
-    pub(crate) fn self_collide(&mut self) -> Option<selfcollide::PartTimes> {
+    /// mesh order so every solver sorts the same keys the same way. With `timed`, returns
+    /// where its time went (`None` without self-collision).
+    pub(crate) fn self_collide(&mut self, timed: bool) -> Option<selfcollide::PartTimes> {
         let config = self.self_collision?;
+        self.self_collider.time_parts(timed);
         // The step's new positions, where the solver keeps them (its numbering, by axis).
         let points = selfcollide::BlockPoints {
             places: &self.numbering.internal,
@@ -28,7 +27,7 @@ impl CpuSolver {
             &config,
         );
         // Only moved vertices are written back; each move shifts the step's motion too.
-        let start = Instant::now();
+        let mut watch = selfcollide::Stopwatch::start(timed);
         let internal = &self.numbering.internal;
         for (v, c) in moves {
             let k = internal[v as usize] as usize;
@@ -38,8 +37,8 @@ impl CpuSolver {
                 .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
         }
         let mut parts = self.self_collider.part_times();
-        parts.moving += start.elapsed();
-        Some(parts)
+        parts.moving += watch.lap();
+        timed.then_some(parts)
     }
 
     /// Places the handles' vertices where their paths or colliders have taken them at the end

@@ -476,7 +476,7 @@ impl CpuSolver {
         let start = Instant::now();
         let bad_ball = self.collide();
         self.move_handles();
-        let self_collision = self.self_collide();
+        let self_collision = self.self_collide(times.is_some());
         if let Some(times) = times {
             times.collision = start.elapsed();
             times.self_collision = self_collision;

@@ -38,14 +38,14 @@
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
 //! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::LANES;
 use super::wide::wide;
-use super::{Points, prefetch};
+use super::{Points, Stopwatch, prefetch};
 use crate::Adjacency;
 
 /// Most vertices in one patch (an 8 x 8 block of a grid).
@@ -205,8 +205,9 @@ pub struct Culling {
     /// Patches made suspect by [`Culling::widen`].
     pub widened: u64,
     /// How long the last proof took to measure the patches (and to build itself, when it
-    /// did): the rest of it went to the pairs of patches.
+    /// did): the rest of it went to the pairs of patches. Zero unless `timing`.
     measuring: Duration,
+    pub(super) timing: bool,
 }
 
 /// What a check found of some pairs: whether one is within the distance plus the margin
@@ -357,12 +358,12 @@ impl Culling {
         if points.count() == 0 {
             return Proof::Clear;
         }
-        let start = Instant::now();
+        let mut watch = Stopwatch::start(self.timing);
         if self.built_for != (points.count(), adjacency.neighbors.len()) {
             self.build(points, adjacency);
         }
         let measured = self.measure_patches(points, distance);
-        self.measuring = start.elapsed();
+        self.measuring = watch.lap();
         let Some(scale) = measured else {
             return Proof::Nothing;
         };

@@ -30,7 +30,6 @@ mod points;
 mod wide;
 
 use std::collections::HashMap;
-use std::time::Instant;
 
 use glam::{IVec3, Vec3};
 use rayon::prelude::*;
@@ -40,7 +39,7 @@ use awake::with_pool_awake;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
 use nearby::Nearby;
-pub use parts::PartTimes;
+pub use parts::{PartTimes, Stopwatch};
 pub use points::{BlockPoints, LANES, Points};
 
 use crate::{Adjacency, Model};
@@ -360,8 +359,9 @@ pub struct Resolver {
     backoff: u32,
     /// Steps run without a proof.
     unproved_steps: u64,
-    /// Where the last step's time went.
+    /// Where the last step's time went, when `timing`.
     parts: PartTimes,
+    timing: bool,
 }
 
 impl Default for Resolver {
@@ -380,6 +380,7 @@ impl Default for Resolver {
             unproved: 0,
             backoff: 0,
             parts: PartTimes::default(),
+            timing: false,
             unproved_steps: 0,
         }
     }
@@ -427,12 +428,12 @@ impl Resolver {
             self.unproved_steps += 1;
             false
         } else {
-            let start = Instant::now();
+            let mut watch = Stopwatch::start(self.timing);
             let proof = self
                 .culling
                 .prove(points, adjacency, config.distance as f32);
             self.parts.measuring = self.culling.measuring();
-            self.parts.pairs = start.elapsed().saturating_sub(self.parts.measuring);
+            self.parts.pairs = watch.lap().saturating_sub(self.parts.measuring);
             match proof {
                 Proof::Clear => {
                     self.backoff = 0;
@@ -466,28 +467,27 @@ impl Resolver {
             local &= self.culling.suspects().len() * self.local_at_most <= n;
             let moves = if local {
                 self.local_passes += 1;
-                let start = Instant::now();
+                let mut watch = Stopwatch::start(self.timing);
                 self.nearby
                     .cover(&self.culling, points, config.cell_size as f32);
-                self.parts.covering += start.elapsed();
+                self.parts.covering += watch.lap();
                 if k == 0 && config.grids > 1 && rayon::current_num_threads() > 1 {
-                    let start = Instant::now();
                     self.sort_ahead(config);
-                    self.parts.sorting += start.elapsed();
+                    self.parts.sorting += watch.lap();
                 }
                 let moves = self.local_pass(weights, adjacency, config, k);
-                let start = Instant::now();
+                let mut watch = Stopwatch::start(self.timing);
                 self.nearby.apply(&moves);
                 self.widen_past_movers(&moves);
-                self.parts.moving += start.elapsed();
+                self.parts.moving += watch.lap();
                 moves
             } else {
                 if !copied {
                     // Every position in mesh order, moved as the local passes so far moved them.
-                    let start = Instant::now();
+                    let mut watch = Stopwatch::start(self.timing);
                     points.copy_into(&mut self.positions);
                     apply(&mut self.positions, &all_moves);
-                    self.parts.covering += start.elapsed();
+                    self.parts.covering += watch.lap();
                     copied = true;
                 }
                 let moves = full_pass(
@@ -497,11 +497,11 @@ impl Resolver {
                     adjacency,
                     config,
                     k,
-                    &mut self.parts,
+                    self.timing.then_some(&mut self.parts),
                 );
-                let start = Instant::now();
+                let mut watch = Stopwatch::start(self.timing);
                 apply(&mut self.positions, &moves);
-                self.parts.moving += start.elapsed();
+                self.parts.moving += watch.lap();
                 moves
             };
             all_moves.extend(moves);
@@ -572,13 +572,12 @@ impl Resolver {
         let keys = GridKeys::with_bits(self.local_bits(), config, k);
         let nearby = &self.nearby;
         let moved = self.movers.iter().map(|&v| nearby.slot(v));
-        let start = Instant::now();
+        let mut watch = Stopwatch::start(self.timing);
         let sorted = match self.ahead.order(k as usize, positions, moved, &keys) {
             Some(sorted) => sorted,
             None => sorted_for_grid(&mut self.binning, positions, &keys),
         };
-        let sorted_at = Instant::now();
-        self.parts.sorting += sorted_at - start;
+        self.parts.sorting += watch.lap();
         let suspects = self.nearby.suspects();
         let pass = Pass {
             keys: &keys,
@@ -592,11 +591,17 @@ impl Resolver {
             |slot| vertices[slot as usize],
             |slot| suspects[slot as usize],
         );
-        self.parts.window_tests += sorted_at.elapsed();
+        self.parts.window_tests += watch.lap();
         moves
     }
 
-    /// Where the last step's self-collision spent its time.
+    /// Whether the next steps time their parts ([`Resolver::part_times`]); off at first.
+    pub fn time_parts(&mut self, on: bool) {
+        self.timing = on;
+        self.culling.timing = on;
+    }
+
+    /// Where the last step's self-collision spent its time (zeros unless timed).
     pub fn part_times(&self) -> PartTimes {
         self.parts
     }
@@ -626,17 +631,8 @@ fn resolve_with(
     config: &SelfCollision,
 ) -> Vec<(u32, Vec3)> {
     let mut all_moves = Vec::new();
-    let mut untimed = PartTimes::default();
     for k in 0..config.grids {
-        let moves = full_pass(
-            binning,
-            positions,
-            weights,
-            adjacency,
-            config,
-            k,
-            &mut untimed,
-        );
+        let moves = full_pass(binning, positions, weights, adjacency, config, k, None);
         apply(positions, &moves);
         all_moves.extend(moves);
     }
@@ -644,7 +640,7 @@ fn resolve_with(
 }
 
 /// Grid `k`'s pass over every vertex: its moves, not yet applied. Its sorting and window
-/// tests are added to `parts`.
+/// tests are added to `parts`, if given.
 fn full_pass(
     binning: &mut Binning,
     positions: &[Vec3],
@@ -652,13 +648,14 @@ fn full_pass(
     adjacency: &Adjacency,
     config: &SelfCollision,
     k: u32,
-    parts: &mut PartTimes,
+    mut parts: Option<&mut PartTimes>,
 ) -> Vec<(u32, Vec3)> {
     let keys = GridKeys::new(positions.len(), config, k);
-    let start = Instant::now();
+    let mut watch = Stopwatch::start(parts.is_some());
     let sorted = sorted_for_grid(binning, positions, &keys);
-    let sorted_at = Instant::now();
-    parts.sorting += sorted_at - start;
+    if let Some(parts) = parts.as_deref_mut() {
+        parts.sorting += watch.lap();
+    }
     let pass = Pass {
         keys: &keys,
         positions,
@@ -667,7 +664,9 @@ fn full_pass(
         config,
     };
     let moves = pass.moves(sorted, |v| v, |_| true);
-    parts.window_tests += sorted_at.elapsed();
+    if let Some(parts) = parts {
+        parts.window_tests += watch.lap();
+    }
     moves
 }
 
