@@ -348,6 +348,8 @@ pub struct Resolver {
     /// vertices that have.
     travelled: Vec<f32>,
     movers: Vec<u32>,
+    /// How far each vertex had travelled when it last widened the suspects, m.
+    widened_at: Vec<f32>,
     /// Passes that tested only suspect vertices.
     local_passes: u64,
     /// Steps with more suspects than one vertex in this many run the full passes.
@@ -374,6 +376,7 @@ impl Default for Resolver {
             nearby: Nearby::default(),
             travelled: Vec::new(),
             movers: Vec::new(),
+            widened_at: Vec::new(),
             local_passes: 0,
             local_at_most: LOCAL_AT_MOST,
             local_key_bits: key_bits,
@@ -458,6 +461,7 @@ impl Resolver {
     ) -> Vec<(u32, Vec3)> {
         let n = points.count();
         self.travelled.resize(n, 0.0);
+        self.widened_at.resize(n, 0.0);
         if local {
             self.nearby.begin(n, self.culling.patch_count());
         }
@@ -478,7 +482,7 @@ impl Resolver {
                 let moves = self.local_pass(weights, adjacency, config, k);
                 let mut watch = Stopwatch::start(self.timing);
                 self.nearby.apply(&moves);
-                self.widen_past_movers(&moves);
+                self.widen_past_movers(&moves, points);
                 self.parts.moving += watch.lap();
                 moves
             } else {
@@ -510,6 +514,7 @@ impl Resolver {
         self.ahead.clear();
         for v in self.movers.drain(..) {
             self.travelled[v as usize] = 0.0;
+            self.widened_at[v as usize] = 0.0;
         }
         if tried && local {
             self.backoff = 0;
@@ -523,8 +528,12 @@ impl Resolver {
     }
 
     /// Counts each move into its vertex's travel, and widens the suspects around every vertex
-    /// that has now travelled further than the margin (a tenth of it is left for rounding).
-    fn widen_past_movers(&mut self, moves: &[(u32, Vec3)]) {
+    /// that has now travelled further than the margin since the proof or since it last
+    /// widened them (a tenth of it is left for rounding). A widening reaches a margin further
+    /// than the distance, so a vertex widens again only after travelling that much more:
+    /// most vertices that widen go on moving in the later passes, and widening after every
+    /// move took a twentieth of a 512^2 step's self-collision in contact.
+    fn widen_past_movers<P: Points + ?Sized>(&mut self, moves: &[(u32, Vec3)], points: &P) {
         let limit = 0.9 * self.culling.margin();
         for &(v, c) in moves {
             let travelled = &mut self.travelled[v as usize];
@@ -532,9 +541,10 @@ impl Resolver {
                 self.movers.push(v);
             }
             *travelled += c.length();
-            if *travelled >= limit {
+            if *travelled - self.widened_at[v as usize] >= limit {
+                self.widened_at[v as usize] = *travelled;
                 let point = self.nearby.position(v);
-                self.culling.widen(point);
+                self.culling.widen(point, points);
                 self.nearby.moved_far(point);
             }
         }

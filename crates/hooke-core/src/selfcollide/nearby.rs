@@ -4,8 +4,8 @@
 //! of all of them (and computing only their keys).
 //!
 //! A cleared vertex never moves and lies in its patch's box of the last proof. A suspect that
-//! has travelled less than the margin lies within that distance of its own patch's box; one
-//! that has travelled further is covered where it now is. Two points of one cell are less than
+//! has travelled less than the margin lies within that distance of the box its patch's
+//! suspects lay in at the proof; one that has travelled further is covered where it now is. Two points of one cell are less than
 //! a cell apart along every axis, so the patches whose boxes come that close (and the margin)
 //! hold every vertex a suspect can share a cell with.
 
@@ -72,7 +72,7 @@ impl Nearby {
     }
 
     /// Notes that a vertex has travelled past the margin to `point`: the next [`Nearby::cover`]
-    /// covers every vertex that may share a cell with it there.
+    /// covers every vertex that may share a cell with it there or within a margin of it.
     pub fn moved_far(&mut self, point: Vec3) {
         self.pending.push(point);
     }
@@ -87,12 +87,14 @@ impl Nearby {
         let mut add = |p: u32| added.push(p);
         let new_suspects = &culling.suspect_patches()[self.suspects_covered..];
         for &p in new_suspects {
-            let (low, high) = culling.box_of(p);
+            let (low, high) = culling.suspect_box_of(p);
             culling.patches_near(low, high, reach + culling.margin(), &mut add);
         }
         self.suspects_covered = culling.suspect_patches().len();
+        // A vertex that widened the suspects at `point` may travel a margin further before it
+        // widens them again.
         for point in self.pending.drain(..) {
-            culling.patches_near(point, point, reach, &mut add);
+            culling.patches_near(point, point, reach + culling.margin(), &mut add);
         }
         let before = self.covered_list.len();
         for p in added {
@@ -108,11 +110,14 @@ impl Nearby {
             // Lists every covered vertex again, each with its patch's flag as it is now.
             self.gather(culling, points, before);
         } else {
-            // Only patches made suspect since they were covered (every suspect is covered by
-            // now: the patches near its box include itself) have flags to set.
+            // Only patches with vertices made suspect since they were covered (every suspect
+            // is covered by now: the patches near its box include its own) have flags to set.
             for &p in new_suspects {
-                for &v in culling.members_of(p) {
-                    self.suspects[self.slots[v as usize] as usize] = true;
+                let bits = culling.suspect_bits_of(p);
+                for (k, &v) in culling.members_of(p).iter().enumerate() {
+                    if bits >> k & 1 != 0 {
+                        self.suspects[self.slots[v as usize] as usize] = true;
+                    }
                 }
             }
         }
@@ -164,7 +169,7 @@ impl Nearby {
                         let [x, y, z] = frame;
                         points.gather_into(culling.places_of(p), [x, y, z]);
                     }
-                    let suspect = culling.is_suspect_patch(p);
+                    let suspects_of_p = culling.suspect_bits_of(p);
                     for (k, &v) in culling.members_of(p).iter().enumerate() {
                         let position = if new {
                             Vec3::new(frame[0][k], frame[1][k], frame[2][k])
@@ -180,7 +185,7 @@ impl Nearby {
                         unsafe {
                             vertices.write(slot, v);
                             positions.write(slot, position);
-                            suspects.write(slot, suspect);
+                            suspects.write(slot, suspects_of_p >> k & 1 != 0);
                         }
                     }
                 },
