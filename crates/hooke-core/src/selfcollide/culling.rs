@@ -407,12 +407,6 @@ impl Culling {
         self.patches.len()
     }
 
-    /// Patch `p`'s box at the last proof.
-    pub fn box_of(&self, p: u32) -> (Vec3, Vec3) {
-        let patch = &self.patches[p as usize];
-        (patch.low, patch.high)
-    }
-
     /// Adds to the suspects every vertex that a vertex at `point` may come within the
     /// distance of before it travels a further margin, for a vertex that has travelled
     /// further than the margin since the last proof (or since it last widened them): those
