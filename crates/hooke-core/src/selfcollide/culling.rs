@@ -516,8 +516,8 @@ impl Culling {
 
     /// The vertices of patches `p` and `q` (where `points` has them now) within the distance
     /// plus the margin of an unjoined vertex of the other patch: `[p's, q's]` (alike when
-    /// `p == q`). A vertex is measured only against the rows of 8 slots of the other patch
-    /// whose boxes come that close to it.
+    /// `p == q`). A row of 8 slots is measured only against the other patch's rows whose
+    /// boxes come that close to its own.
     fn close_slots<P: Points + ?Sized>(&self, [p, q]: [u32; 2], check: &Check<P>) -> [Close; 2] {
         wide(
             #[inline(always)]
@@ -547,12 +547,7 @@ impl Culling {
                         let x = point_of(&mine, k);
                         let mut near = 0u64;
                         for s in slots_of(near_rows) {
-                            // Only the rows whose box comes that close to the point itself.
-                            let (other_low, other_high) = rows_q[s];
-                            let gap = (other_low - x).max(x - other_high).max(Vec3::ZERO);
-                            if gap.length_squared() < within {
-                                near |= row_within(&others, s, x, within) << (8 * s);
-                            }
+                            near |= row_within(&others, s, x, within) << (8 * s);
                         }
                         near &= u64::MAX >> (PATCH - count_q);
                         if p == q {
