@@ -151,6 +151,10 @@ struct NearPair {
     suspect: bool,
 }
 
+/// Pairs of patches found suspect, each with its suspect vertices where they were named
+/// while it was checked.
+type SuspectPairs = Vec<([u32; 2], Option<[Close; 2]>)>;
+
 /// A node of the hierarchy over patches `first..end`.
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -268,10 +272,15 @@ fn slots_within(frame: &Frame, count: usize, x: Vec3, within: f32) -> u64 {
 }
 
 /// The slots of row `r` of `frame` (slots `8 r..8 r + 8`) closer to `x` than `within.sqrt()`,
-/// a bit each from the lowest: four lanes at a time, each comparison's lanes taken as bits at
-/// once (a slot at a time, the naming of suspects took half as long again at 512^2).
+/// a bit each from the lowest.
 #[inline(always)]
 fn row_within(frame: &Frame, r: usize, x: Vec3, within: f32) -> u64 {
+    under(row_squared(frame, r, x), within)
+}
+
+/// The squared distances of row `r`'s slots of `frame` from `x`, four lanes at a time.
+#[inline(always)]
+fn row_squared(frame: &Frame, r: usize, x: Vec3) -> [Vec4; 2] {
     let four = |first: usize| {
         let axis = |a: usize| Vec4::from_slice(&frame[a][first..first + 4]);
         let d = [
@@ -279,10 +288,18 @@ fn row_within(frame: &Frame, r: usize, x: Vec3, within: f32) -> u64 {
             axis(1) - Vec4::splat(x.y),
             axis(2) - Vec4::splat(x.z),
         ];
-        let squared = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        u64::from(squared.cmplt(Vec4::splat(within)).bitmask())
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
     };
-    four(8 * r) | four(8 * r + 4) << 4
+    [four(8 * r), four(8 * r + 4)]
+}
+
+/// The lanes of a row's squared distances below `limit`, a bit each from the lowest: each
+/// comparison's lanes taken as bits at once (a slot at a time, the naming of suspects took
+/// half as long again at 512^2).
+#[inline(always)]
+fn under([low, high]: [Vec4; 2], limit: f32) -> u64 {
+    let limit = Vec4::splat(limit);
+    u64::from(low.cmplt(limit).bitmask()) | u64::from(high.cmplt(limit).bitmask()) << 4
 }
 
 /// The box of each row of 8 slots of `frame`.
@@ -477,21 +494,27 @@ impl Culling {
         if !contact {
             return Proof::Clear;
         }
-        self.name_suspects(&suspect_pairs, &check);
+        self.name_suspects(suspect_pairs, &check);
         Proof::Local
     }
 
     /// Makes suspect every vertex of `pairs` (pairs of patches in which some unjoined pair
     /// is within the distance plus the margin) that is itself within that of an unjoined
-    /// vertex of the other patch, and lists them. Vertex by vertex, not the pairs' whole
-    /// patches: where a sheet folds through a patch, a row or two of its vertices are that
-    /// close (a third of the whole patches' vertices at 512^2 in contact, a fifth at 256^2),
-    /// and each suspect costs a window test per pass.
-    fn name_suspects<P: Points + ?Sized>(&mut self, pairs: &[[u32; 2]], check: &Check<P>) {
-        let closes: Vec<[Close; 2]> = pairs
-            .par_iter()
-            .map(|&pair| self.close_slots(pair, check))
-            .collect();
+    /// vertex of the other patch, and lists them; a pair comes with those vertices if its
+    /// check already named them. Vertex by vertex, not the pairs' whole patches: where a
+    /// sheet folds through a patch, a row or two of its vertices are that close (a third of
+    /// the whole patches' vertices at 512^2 in contact, a fifth at 256^2), and each suspect
+    /// costs a window test per pass.
+    fn name_suspects<P: Points + ?Sized>(&mut self, pairs: SuspectPairs, check: &Check<P>) {
+        let (pairs, closes): (Vec<[u32; 2]>, Vec<[Close; 2]>) = pairs
+            .into_par_iter()
+            .map(|(pair, named)| {
+                (
+                    pair,
+                    named.unwrap_or_else(|| self.close_slots(pair, check).0),
+                )
+            })
+            .unzip();
         self.suspect_bits.clear();
         self.suspect_bits.resize(self.patches.len(), 0);
         self.suspect_boxes.clear();
@@ -516,9 +539,14 @@ impl Culling {
 
     /// The vertices of patches `p` and `q` (where `points` has them now) within the distance
     /// plus the margin of an unjoined vertex of the other patch: `[p's, q's]` (alike when
-    /// `p == q`). A row of 8 slots is measured only against the other patch's rows whose
+    /// `p == q`); and whether some unjoined pair is within the distance (closer than
+    /// `clear_at`). A row of 8 slots is measured only against the other patch's rows whose
     /// boxes come that close to its own.
-    fn close_slots<P: Points + ?Sized>(&self, [p, q]: [u32; 2], check: &Check<P>) -> [Close; 2] {
+    fn close_slots<P: Points + ?Sized>(
+        &self,
+        [p, q]: [u32; 2],
+        check: &Check<P>,
+    ) -> ([Close; 2], bool) {
         wide(
             #[inline(always)]
             || {
@@ -532,7 +560,9 @@ impl Culling {
                 let count_q = self.slots(q).len();
                 let (rows_p, rows_q) = (row_boxes(&mine), row_boxes(&others));
                 let within = check.suspect_at * check.suspect_at;
+                let touching = check.clear_at * check.clear_at;
                 let (mut close_p, mut close_q) = (Close::NONE, Close::NONE);
+                let mut contact = false;
                 for (r, &(low, high)) in rows_p.iter().enumerate().take(count.div_ceil(8)) {
                     // `q`'s rows whose boxes come that close to this one's, a bit each.
                     let near_rows = (0..count_q.div_ceil(8)).fold(0u64, |rows, s| {
@@ -545,9 +575,11 @@ impl Culling {
                     }
                     for k in 8 * r..(8 * r + 8).min(count) {
                         let x = point_of(&mine, k);
-                        let mut near = 0u64;
+                        let (mut near, mut touch) = (0u64, 0u64);
                         for s in slots_of(near_rows) {
-                            near |= row_within(&others, s, x, within) << (8 * s);
+                            let squared = row_squared(&others, s, x);
+                            near |= under(squared, within) << (8 * s);
+                            touch |= under(squared, touching) << (8 * s);
                         }
                         near &= u64::MAX >> (PATCH - count_q);
                         if p == q {
@@ -564,6 +596,8 @@ impl Culling {
                         if near != 0 {
                             close_p.add(k, x);
                             close_q.bits |= near;
+                            // `touching` is below `within`: its slots are among `near`'s.
+                            contact |= touch & near != 0;
                         }
                     }
                 }
@@ -574,7 +608,7 @@ impl Culling {
                     close_p.join(close_q);
                     close_q = close_p;
                 }
-                [close_p, close_q]
+                ([close_p, close_q], contact)
             },
         )
     }
@@ -772,10 +806,7 @@ impl Culling {
     /// the other ran out of pairs; a second pass over them alone shares it out. (On alternate
     /// steps of the same runs in contact, with the cached gaps of [`Standing`]: 8-10% less
     /// time for the near and far pairs together at 512^2, 16-19% at 256^2.)
-    fn near_and_far_pairs<P: Points + ?Sized>(
-        &mut self,
-        check: &Check<P>,
-    ) -> (bool, Vec<[u32; 2]>) {
+    fn near_and_far_pairs<P: Points + ?Sized>(&mut self, check: &Check<P>) -> (bool, SuspectPairs) {
         let mut near = std::mem::take(&mut self.near);
         let this = &*self;
         let (news, far) = rayon::join(
@@ -796,16 +827,13 @@ impl Culling {
                     .collect();
                 let near = &near;
                 due.into_par_iter()
-                    .map(|i| {
-                        let (found, measured) = this.measure_near_pair(&near[i], check);
-                        (i, found, measured)
-                    })
+                    .map(|i| (i, this.measure_near_pair(&near[i], check)))
                     .collect::<Vec<_>>()
             },
             || this.far_pairs(check),
         );
         let (mut contact, mut suspects) = (false, Vec::new());
-        for (i, found, measured) in news {
+        for (i, (found, measured, named)) in news {
             let pair = &mut near[i];
             pair.suspect = found.suspect;
             if let Some(gap) = measured {
@@ -818,7 +846,7 @@ impl Culling {
             }
             contact |= found.contact;
             if found.suspect {
-                suspects.push(pair.patches);
+                suspects.push((pair.patches, named));
             }
             if let Some(gap) = measured {
                 for patch in pair.patches {
@@ -830,7 +858,7 @@ impl Culling {
         self.near = near;
         for (pair, found) in far {
             contact |= found.contact;
-            suspects.push(pair);
+            suspects.push((pair, None));
         }
         (contact, suspects)
     }
@@ -847,20 +875,26 @@ impl Culling {
         left >= 0.0 && (a.moved - b.moved - pair.offset).length_squared() <= left * left
     }
 
-    /// What a near pair that its cached gap does not clear shows, and its gap if it had to
-    /// be measured again.
+    /// What a near pair that its cached gap does not clear shows, its gap if it had to be
+    /// measured again, and its suspect vertices if they were named.
     fn measure_near_pair<P: Points + ?Sized>(
         &self,
         pair: &NearPair,
         check: &Check<P>,
-    ) -> (Found, Option<f32>) {
+    ) -> (Found, Option<f32>, Option<[Close; 2]>) {
         let [p, q] = pair.patches;
         let (a, b) = (&self.patches[p as usize], &self.patches[q as usize]);
         let current = |patch: u32| self.current(check.points, patch);
         if pair.suspect {
-            // In contact last step: the placed gap would most likely fail again.
-            let closest = self.closest_unjoined([p, q], current, check.clear_at);
-            return (Found::at(closest, check), None);
+            // In contact last step: the placed gap would most likely fail again, and the
+            // pair most likely has suspects. They are named here, which also shows whether
+            // it is in contact: measuring the pair first, then naming its suspects, read and
+            // measured the same points twice. (A step with no contact anywhere names none, so
+            // there the naming is spent for nothing; in contact last step makes that rare.)
+            let (closes, contact) = self.close_slots([p, q], check);
+            let suspect = closes[0].bits != 0;
+            let found = Found { suspect, contact };
+            return (found, None, suspect.then_some(closes));
         }
         let placed = |patch: u32| {
             let mut frame = self.references[patch as usize];
@@ -872,15 +906,15 @@ impl Culling {
         };
         let gap = self.closest_unjoined([p, q], placed, 0.0);
         if gap - a.spread - b.spread >= check.suspect_at {
-            return (Found::default(), Some(gap));
+            return (Found::default(), Some(gap), None);
         }
         // Both on their references (just renewed, say): the gap is the current distance.
         let still = |patch: &Patch| patch.spread == 0.0 && patch.centre == Vec3::ZERO;
         if still(a) && still(b) {
-            return (Found::at(gap, check), Some(gap));
+            return (Found::at(gap, check), Some(gap), None);
         }
         let closest = self.closest_unjoined([p, q], current, check.clear_at);
-        (Found::at(closest, check), Some(gap))
+        (Found::at(closest, check), Some(gap), None)
     }
 
     /// The suspect pairs of patches that are not near, with what each shows.
