@@ -436,17 +436,17 @@ impl Culling {
         let within = reach * reach;
         for p in found {
             let before = self.suspect_bits[p as usize];
+            let (low, high) = self.suspect_boxes[p as usize];
             let frame = self.current(points, p);
-            let mut close = Close::NONE;
+            let mut close = Close {
+                bits: before,
+                low,
+                high,
+            };
             for k in slots_of(slots_within(&frame, self.slots(p).len(), point, within) & !before) {
                 close.add(k, point_of(&frame, k));
             }
-            if close.bits != 0 {
-                close.join(Close {
-                    bits: before,
-                    low: self.suspect_boxes[p as usize].0,
-                    high: self.suspect_boxes[p as usize].1,
-                });
+            if close.bits != before {
                 self.suspect_bits[p as usize] = close.bits;
                 self.suspect_boxes[p as usize] = (close.low, close.high);
                 self.widened += 1;
@@ -588,11 +588,7 @@ impl Culling {
                         if near == 0 {
                             continue;
                         }
-                        for &slot in self.joined_of(first + k) {
-                            if slot as usize / PATCH == q as usize {
-                                near &= !(1 << (slot as usize % PATCH));
-                            }
-                        }
+                        near &= !self.joined_in(first + k, q);
                         if near != 0 {
                             close_p.add(k, x);
                             close_q.bits |= near;
@@ -1009,6 +1005,15 @@ impl Culling {
         &self.joined[self.joined_offsets[slot] as usize..self.joined_offsets[slot + 1] as usize]
     }
 
+    /// The slots of patch `q` joined to slot `slot`'s vertex by a spring, a bit each.
+    #[inline(always)]
+    fn joined_in(&self, slot: usize, q: u32) -> u64 {
+        self.joined_of(slot)
+            .iter()
+            .filter(|&&joined| joined as usize / PATCH == q as usize)
+            .fold(0, |bits, &joined| bits | 1 << (joined as usize % PATCH))
+    }
+
     /// Slots of patch `p` in `members`.
     fn slots(&self, p: u32) -> std::ops::Range<usize> {
         let first = p as usize * PATCH;
@@ -1076,12 +1081,8 @@ impl Culling {
                         continue;
                     }
                     // The slots of `q` that the vertex is itself or joined to, a bit each.
-                    let mut joined = if p == q { 1u64 << k } else { 0 };
-                    for &slot in self.joined_of(first + k) {
-                        if slot as usize / PATCH == q as usize {
-                            joined |= 1 << (slot as usize % PATCH);
-                        }
-                    }
+                    let itself = if p == q { 1u64 << k } else { 0 };
+                    let joined = itself | self.joined_in(first + k, q);
                     // The smallest over 8 lanes, each folding every 8th slot: 8 slots at a
                     // time in one vector register, where a fold over all 64 in order ran a
                     // slot at a time.

@@ -5,9 +5,9 @@
 //!
 //! A cleared vertex never moves and lies in its patch's box of the last proof. A suspect that
 //! has travelled less than the margin lies within that distance of the box its patch's
-//! suspects lay in at the proof; one that has travelled further is covered where it now is. Two points of one cell are less than
-//! a cell apart along every axis, so the patches whose boxes come that close (and the margin)
-//! hold every vertex a suspect can share a cell with.
+//! suspects lay in at the proof; one that has travelled further is covered where it now is.
+//! Two points of one cell are less than a cell apart along every axis, so the patches whose
+//! boxes come that close (and the margin) hold every vertex a suspect can share a cell with.
 
 use glam::Vec3;
 use rayon::prelude::*;
