@@ -542,25 +542,39 @@ impl Culling {
                 )
             })
             .unzip();
-        self.suspect_bits.clear();
-        self.suspect_bits.resize(self.patches.len(), 0);
-        self.suspect_boxes.clear();
         let nowhere = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        self.suspect_boxes.resize(self.patches.len(), nowhere);
+        if self.suspect_bits.len() == self.patches.len() {
+            // Only the patches listed since the last naming have suspects (and a box): one
+            // thread reset all 4,096 of the 512^2 grid's, and scanned them, while the other
+            // waited.
+            for &p in &self.suspect_list {
+                self.suspect_bits[p as usize] = 0;
+                self.suspect_boxes[p as usize] = nowhere;
+            }
+        } else {
+            self.suspect_bits.clear();
+            self.suspect_bits.resize(self.patches.len(), 0);
+            self.suspect_boxes.clear();
+            self.suspect_boxes.resize(self.patches.len(), nowhere);
+        }
+        let mut named = Vec::with_capacity(2 * pairs.len());
         for (pair, close) in pairs.iter().zip(closes) {
             for (&p, close) in pair.iter().zip(close) {
-                self.suspect_bits[p as usize] |= close.bits;
-                let (low, high) = &mut self.suspect_boxes[p as usize];
-                (*low, *high) = (low.min(close.low), high.max(close.high));
+                if close.bits != 0 {
+                    self.suspect_bits[p as usize] |= close.bits;
+                    let (low, high) = &mut self.suspect_boxes[p as usize];
+                    (*low, *high) = (low.min(close.low), high.max(close.high));
+                    named.push(p);
+                }
             }
         }
+        // Listed in patch order, each once.
+        named.sort_unstable();
+        named.dedup();
         self.suspects.clear();
         self.suspect_list.clear();
-        for p in 0..self.patches.len() as u32 {
-            let bits = self.suspect_bits[p as usize];
-            if bits != 0 {
-                self.list_suspects(p, bits);
-            }
+        for p in named {
+            self.list_suspects(p, self.suspect_bits[p as usize]);
         }
     }
 
