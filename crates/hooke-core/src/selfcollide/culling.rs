@@ -1794,6 +1794,12 @@ pub(crate) mod tests {
                     "suspect {v} has no close pair"
                 );
             }
+            // The flags say the same as the list: none left over from an earlier proof.
+            let listed: std::collections::HashSet<u32> =
+                culling.suspects().iter().copied().collect();
+            for v in 0..positions.len() as u32 {
+                assert_eq!(culling.is_suspect(v), listed.contains(&v), "vertex {v}");
+            }
         }
     }
 
@@ -1816,6 +1822,29 @@ pub(crate) mod tests {
                 Proof::Nothing
             );
             check_proof(&mut culling, &sheet, &adjacency, distance, true);
+        }
+    }
+
+    /// A contact that moves from place to place, step after step: each proof's suspects are
+    /// where the contact is then, with none left over from the one before.
+    #[test]
+    fn suspects_follow_the_contact_from_place_to_place() {
+        let (columns, rows, spacing, distance) = (48u32, 48u32, 0.01f32, 0.004f32);
+        let adjacency =
+            Adjacency::from_springs((columns * rows) as usize, &grid_springs(columns, rows));
+        let sheet = squeezed_grid(columns, rows, spacing, 2.0 * distance, 0.0);
+        let mut culling = Culling::default();
+        check_proof(&mut culling, &sheet, &adjacency, distance, true);
+        for v in [
+            5 * columns + 5,
+            40 * columns + 40,
+            5 * columns + 40,
+            5 * columns + 5,
+        ] {
+            // Half a distance from its unjoined neighbour two along.
+            let mut touching = sheet.clone();
+            touching[v as usize].x += 1.5 * distance;
+            check_proof(&mut culling, &touching, &adjacency, distance, false);
         }
     }
 
