@@ -170,9 +170,11 @@ struct Node {
 /// order, so a subtree's are a run: the root, then its first half's, then its second's) around
 /// its patches' boxes. Subtrees of [`PARALLEL_PATCHES`] or more patches fit their halves side
 /// by side: on one thread the 512^2 grid's 8,191 nodes took 47-52 us a step while the other
-/// thread waited, side by side 39-45 (in contact, on an Intel Xeon VM's 2 vCPUs).
+/// thread waited, side by side 38-45 (in contact, on an Intel Xeon VM's 2 vCPUs).
 fn refit(nodes: &mut [Node], patches: &[Patch]) {
-    let (root, rest) = nodes.split_first_mut().expect("a subtree has its root");
+    let Some((root, rest)) = nodes.split_first_mut() else {
+        return;
+    };
     let (low, high) = match root.children {
         None => {
             let patch = &patches[root.first as usize];
@@ -544,9 +546,9 @@ impl Culling {
             .unzip();
         let nowhere = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         if self.suspect_bits.len() == self.patches.len() {
-            // Only the patches listed since the last naming have suspects (and a box): one
-            // thread reset all 4,096 of the 512^2 grid's, and scanned them, while the other
-            // waited.
+            // Only the patches listed since the last naming have suspects (and a box): a patch
+            // gains them only here or in a widening, and both list it. (One thread reset all
+            // 4,096 of the 512^2 grid's, and scanned them, while the other waited.)
             for &p in &self.suspect_list {
                 self.suspect_bits[p as usize] = 0;
                 self.suspect_boxes[p as usize] = nowhere;
@@ -1807,10 +1809,8 @@ pub(crate) mod tests {
     /// and on any axis, makes the proof give up; finite positions then prove as before.
     #[test]
     fn a_position_that_is_not_finite_proves_nothing() {
-        let (columns, rows, spacing, distance) = (24u32, 24u32, 0.01f32, 0.004f32);
-        let adjacency =
-            Adjacency::from_springs((columns * rows) as usize, &grid_springs(columns, rows));
-        let sheet = squeezed_grid(columns, rows, spacing, 2.0 * spacing, 0.0);
+        let distance = 0.004f32;
+        let (adjacency, sheet) = flat_squeezed_grid(24, 24, 0.01, 0.02);
         let mut culling = Culling::default();
         check_proof(&mut culling, &sheet, &adjacency, distance, true);
         let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
@@ -1829,10 +1829,8 @@ pub(crate) mod tests {
     /// where the contact is then, with none left over from the one before.
     #[test]
     fn suspects_follow_the_contact_from_place_to_place() {
-        let (columns, rows, spacing, distance) = (48u32, 48u32, 0.01f32, 0.004f32);
-        let adjacency =
-            Adjacency::from_springs((columns * rows) as usize, &grid_springs(columns, rows));
-        let sheet = squeezed_grid(columns, rows, spacing, 2.0 * distance, 0.0);
+        let (columns, distance) = (48u32, 0.004f32);
+        let (adjacency, sheet) = flat_squeezed_grid(columns, 48, 0.01, 2.0 * distance);
         let mut culling = Culling::default();
         check_proof(&mut culling, &sheet, &adjacency, distance, true);
         for v in [
@@ -1846,6 +1844,18 @@ pub(crate) mod tests {
             touching[v as usize].x += 1.5 * distance;
             check_proof(&mut culling, &touching, &adjacency, distance, false);
         }
+    }
+
+    /// The generator grid's springs, and [`squeezed_grid`]'s positions at height 0.
+    fn flat_squeezed_grid(
+        columns: u32,
+        rows: u32,
+        spacing: f32,
+        gap: f32,
+    ) -> (Adjacency, Vec<Vec3>) {
+        let adjacency =
+            Adjacency::from_springs((columns * rows) as usize, &grid_springs(columns, rows));
+        (adjacency, squeezed_grid(columns, rows, spacing, gap, 0.0))
     }
 
     /// A grid of `columns` x `rows` squeezed along x until each vertex's unjoined neighbour
