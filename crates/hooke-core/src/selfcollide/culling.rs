@@ -464,24 +464,34 @@ impl Culling {
         self.patches_near(point, point, reach, |p| found.push(p));
         let within = reach * reach;
         for p in found {
-            let before = self.suspect_bits[p as usize];
-            let (low, high) = self.suspect_boxes[p as usize];
+            let mut close = self.suspects_in(p);
+            let before = close.bits;
             let frame = self.current(points, p);
-            let mut close = Close {
-                bits: before,
-                low,
-                high,
-            };
             for k in slots_of(slots_within(&frame, self.slots(p).len(), point, within) & !before) {
                 close.add(k, point_of(&frame, k));
             }
             if close.bits != before {
-                self.suspect_bits[p as usize] = close.bits;
-                self.suspect_boxes[p as usize] = (close.low, close.high);
+                self.set_suspects_in(p, close);
                 self.widened += 1;
                 self.list_suspects(p, close.bits & !before);
             }
         }
+    }
+
+    /// Patch `p`'s suspect vertices and the box they lie in.
+    fn suspects_in(&self, p: u32) -> Close {
+        let (low, high) = self.suspect_boxes[p as usize];
+        Close {
+            bits: self.suspect_bits[p as usize],
+            low,
+            high,
+        }
+    }
+
+    /// Makes `close` patch `p`'s suspect vertices and their box.
+    fn set_suspects_in(&mut self, p: u32, close: Close) {
+        self.suspect_bits[p as usize] = close.bits;
+        self.suspect_boxes[p as usize] = (close.low, close.high);
     }
 
     /// Lists patch `p` and its vertices of `bits`, made suspect.
@@ -535,7 +545,7 @@ impl Culling {
     /// the whole patches' vertices at 512^2 in contact, a fifth at 256^2), and each suspect
     /// costs a window test per pass.
     fn name_suspects<P: Points + ?Sized>(&mut self, pairs: SuspectPairs, check: &Check<P>) {
-        let (pairs, closes): (Vec<[u32; 2]>, Vec<[Close; 2]>) = pairs
+        let closes: Vec<([u32; 2], [Close; 2])> = pairs
             .into_par_iter()
             .map(|(pair, named)| {
                 (
@@ -543,8 +553,8 @@ impl Culling {
                     named.unwrap_or_else(|| self.close_slots(pair, check).0),
                 )
             })
-            .unzip();
-        let nowhere = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+            .collect();
+        let nowhere = (Close::NONE.low, Close::NONE.high);
         if self.suspect_bits.len() == self.patches.len() {
             // Only the patches listed since the last naming have suspects (and a box): a patch
             // gains them only here or in a widening, and both list it. (One thread reset all
@@ -559,13 +569,13 @@ impl Culling {
             self.suspect_boxes.clear();
             self.suspect_boxes.resize(self.patches.len(), nowhere);
         }
-        let mut named = Vec::with_capacity(2 * pairs.len());
-        for (pair, close) in pairs.iter().zip(closes) {
-            for (&p, close) in pair.iter().zip(close) {
+        let mut named = Vec::with_capacity(2 * closes.len());
+        for (pair, close) in closes {
+            for (p, close) in pair.into_iter().zip(close) {
                 if close.bits != 0 {
-                    self.suspect_bits[p as usize] |= close.bits;
-                    let (low, high) = &mut self.suspect_boxes[p as usize];
-                    (*low, *high) = (low.min(close.low), high.max(close.high));
+                    let mut suspects = self.suspects_in(p);
+                    suspects.join(close);
+                    self.set_suspects_in(p, suspects);
                     named.push(p);
                 }
             }
