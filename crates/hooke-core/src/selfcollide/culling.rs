@@ -226,10 +226,9 @@ pub struct Culling {
     near_patches: Vec<u32>,
     /// The hierarchy, root first, every node before its children.
     nodes: Vec<Node>,
-    /// The last proof's suspect vertices: a bit per slot of each patch, the box they lay in
-    /// (where a patch has some), the patches in the order they gained some, and the vertices.
-    suspect_bits: Vec<u64>,
-    suspect_boxes: Vec<(Vec3, Vec3)>,
+    /// The last proof's suspect vertices: each patch's (a bit per slot, and the box they lay
+    /// in), the patches in the order they gained some, and the vertices.
+    suspect_closes: Vec<Close>,
     suspect_list: Vec<u32>,
     suspects: Vec<u32>,
     /// The last proof's margin, and the distance at which a pair was clear, m.
@@ -400,13 +399,14 @@ impl Culling {
 
     /// Which of patch `p`'s vertices ([`Culling::members_of`]) are suspects, a bit each.
     pub fn suspect_bits_of(&self, p: u32) -> u64 {
-        self.suspect_bits[p as usize]
+        self.suspect_closes[p as usize].bits
     }
 
     /// The box patch `p`'s suspect vertices lie in (where they were at the last proof, or for
     /// those [`Culling::widen`] added, when added).
     pub fn suspect_box_of(&self, p: u32) -> (Vec3, Vec3) {
-        self.suspect_boxes[p as usize]
+        let close = &self.suspect_closes[p as usize];
+        (close.low, close.high)
     }
 
     /// How far, m, beyond the distance every vertex outside [`Culling::suspects`] was from
@@ -464,34 +464,18 @@ impl Culling {
         self.patches_near(point, point, reach, |p| found.push(p));
         let within = reach * reach;
         for p in found {
-            let mut close = self.suspects_in(p);
+            let mut close = self.suspect_closes[p as usize];
             let before = close.bits;
             let frame = self.current(points, p);
             for k in slots_of(slots_within(&frame, self.slots(p).len(), point, within) & !before) {
                 close.add(k, point_of(&frame, k));
             }
             if close.bits != before {
-                self.set_suspects_in(p, close);
+                self.suspect_closes[p as usize] = close;
                 self.widened += 1;
                 self.list_suspects(p, close.bits & !before);
             }
         }
-    }
-
-    /// Patch `p`'s suspect vertices and the box they lie in.
-    fn suspects_in(&self, p: u32) -> Close {
-        let (low, high) = self.suspect_boxes[p as usize];
-        Close {
-            bits: self.suspect_bits[p as usize],
-            low,
-            high,
-        }
-    }
-
-    /// Makes `close` patch `p`'s suspect vertices and their box.
-    fn set_suspects_in(&mut self, p: u32, close: Close) {
-        self.suspect_bits[p as usize] = close.bits;
-        self.suspect_boxes[p as usize] = (close.low, close.high);
     }
 
     /// Lists patch `p` and its vertices of `bits`, made suspect.
@@ -554,28 +538,22 @@ impl Culling {
                 )
             })
             .collect();
-        let nowhere = (Close::NONE.low, Close::NONE.high);
-        if self.suspect_bits.len() == self.patches.len() {
+        if self.suspect_closes.len() == self.patches.len() {
             // Only the patches listed since the last naming have suspects (and a box): a patch
             // gains them only here or in a widening, and both list it. (One thread reset all
             // 4,096 of the 512^2 grid's, and scanned them, while the other waited.)
             for &p in &self.suspect_list {
-                self.suspect_bits[p as usize] = 0;
-                self.suspect_boxes[p as usize] = nowhere;
+                self.suspect_closes[p as usize] = Close::NONE;
             }
         } else {
-            self.suspect_bits.clear();
-            self.suspect_bits.resize(self.patches.len(), 0);
-            self.suspect_boxes.clear();
-            self.suspect_boxes.resize(self.patches.len(), nowhere);
+            self.suspect_closes.clear();
+            self.suspect_closes.resize(self.patches.len(), Close::NONE);
         }
         let mut named = Vec::with_capacity(2 * closes.len());
         for (pair, close) in closes {
             for (p, close) in pair.into_iter().zip(close) {
                 if close.bits != 0 {
-                    let mut suspects = self.suspects_in(p);
-                    suspects.join(close);
-                    self.set_suspects_in(p, suspects);
+                    self.suspect_closes[p as usize].join(close);
                     named.push(p);
                 }
             }
@@ -586,7 +564,7 @@ impl Culling {
         self.suspects.clear();
         self.suspect_list.clear();
         for p in named {
-            self.list_suspects(p, self.suspect_bits[p as usize]);
+            self.list_suspects(p, self.suspect_closes[p as usize].bits);
         }
     }
 
