@@ -784,8 +784,8 @@ mod tests {
 
     #[test]
     fn blocks_with_room_for_one_band_sweep_only_on_one_thread() {
-        // Rows of 2,048 vertices: a spring reaches up to 3 blocks of 1,024 past its own, so
-        // the 64 blocks hold one band 4 depths of reach wide, which one thread alone would
+        // Rows of 2,048 vertices: a spring reaches up to 2 blocks of 1,056 past its own, so
+        // the 63 blocks hold one band 4 depths of reach wide, which one thread alone would
         // sweep while the others waited.
         let scene = benchmark_scene(MeshSection::unit_grid(2048, 32), 2048 * 32);
         for (threads, sweeps) in [(1, true), (2, false), (3, false)] {

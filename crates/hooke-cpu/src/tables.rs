@@ -86,11 +86,20 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
 /// Vertices whose springs the scatter force pass visits together on a structured mesh: their
 /// positions (and their springs' far ends, a row of the mesh further on) stay in the
 /// second-level cache while the pass visits each kind of spring in turn.
-/// 1,024 since 2026-12-02 (4,096 before): a mesh of 65,536 vertices then has blocks enough
-/// for a band per thread, and on an Intel Xeon VM the 512^2 grid's scatter step took
-/// 0.65-0.76 ms against 0.73-0.78, with no change beyond the noise at 1024^2 and 2048^2 (the
-/// AMD VM of earlier sessions had found larger blocks faster at 2048^2).
-pub(crate) const SPRING_BLOCK: u32 = 1024;
+///
+/// Not a power of two: a block's groups of springs, one per kind, lie a block's worth of
+/// forces apart, and a vertex sums one row from each group and from the groups a mesh row
+/// back. With 1,024 first ends (4 KiB of forces per axis and group) all of those rows fell in
+/// the same sets of the first-level cache (it repeats every 4 KiB), and on grids whose rows
+/// are a multiple of 1,024 vertices so did the rows a mesh row back: some 18 lines for 8
+/// ways. On an AMD EPYC VM the summing then took 1.5x the force pass's time at 1024^2 and
+/// 2048^2 against 1.06-1.10x at 512^2 (the two kernels' `perf` samples, one thread), and the
+/// scatter step grew 1.13-1.28x per spring from 512^2 to 2048^2. With 1,056 (groups two
+/// cache lines apart modulo 4 KiB) the summing takes 1.0-1.04x the force pass at every
+/// size, and the step grows 0.99-1.02x per spring (see the README). 1,024 since 2026-12-02
+/// (4,096 before), so that a mesh of 65,536 vertices has blocks enough for a band per
+/// thread.
+pub(crate) const SPRING_BLOCK: u32 = 1056;
 
 /// The order the scatter force pass visits springs in. Structured meshes have a handful of
 /// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
@@ -311,10 +320,10 @@ mod tests {
             .collect();
         let blocks: Vec<u32> = firsts.iter().map(|a| a / SPRING_BLOCK).collect();
         assert!(blocks.is_sorted(), "springs leave a block and come back");
-        assert_eq!(blocks.last(), Some(&(side * side / SPRING_BLOCK - 1)));
+        assert_eq!(blocks.last(), Some(&((side * side - 1) / SPRING_BLOCK)));
         // Within a block, the first ends rise three times over: once per offset.
         let restarts = firsts.windows(2).filter(|w| w[1] < w[0]).count();
-        assert_eq!(restarts, 2 * (side * side / SPRING_BLOCK) as usize);
+        assert_eq!(restarts, 2 * (side * side).div_ceil(SPRING_BLOCK) as usize);
         for ends in [&springs.a, &springs.b] {
             let share = ends.contiguous_share();
             assert!(share > 0.95, "contiguous spring-end rows: {share}");
