@@ -95,11 +95,18 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
 /// ways. On an AMD EPYC VM the summing then took 1.5x the force pass's time at 1024^2 and
 /// 2048^2 against 1.06-1.10x at 512^2 (the two kernels' `perf` samples, one thread), and the
 /// scatter step grew 1.13-1.28x per spring from 512^2 to 2048^2. With 1,056 (groups two
-/// cache lines apart modulo 4 KiB) the summing takes 1.0-1.04x the force pass at every
+/// cache lines apart modulo 4 KiB) the summing takes 0.95-1.04x the force pass at every
 /// size, and the step grows 0.99-1.02x per spring (see the README). 1,024 since 2026-12-02
 /// (4,096 before), so that a mesh of 65,536 vertices has blocks enough for a band per
 /// thread.
 pub(crate) const SPRING_BLOCK: u32 = 1056;
+
+// A block's groups of forces (4 bytes a spring per axis) lie at least two cache lines apart
+// modulo 4 KiB, either way round (see above).
+const _: () = {
+    let apart = SPRING_BLOCK as usize * 4 % 4096;
+    assert!(apart >= 128 && apart <= 4096 - 128 && (SPRING_BLOCK as usize).is_multiple_of(LANES));
+};
 
 /// The order the scatter force pass visits springs in. Structured meshes have a handful of
 /// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
