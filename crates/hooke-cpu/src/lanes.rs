@@ -13,8 +13,15 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::layout::LANES;
 use crate::simd::Block;
 
-/// Blocks per 4 KiB, the span of L1 cache sets on current x86 and ARM cores.
-const BLOCKS_PER_PAGE: usize = 4096 / std::mem::size_of::<Block>();
+/// Bytes over which the first-level cache's sets repeat on current x86 and ARM cores: runs
+/// read in lockstep that start a multiple of this apart compete for the same sets.
+pub(crate) const L1_SET_SPAN: usize = 4096;
+
+/// Bytes per cache line.
+pub(crate) const CACHE_LINE: usize = 64;
+
+/// Blocks per [`L1_SET_SPAN`].
+const BLOCKS_PER_PAGE: usize = L1_SET_SPAN / std::mem::size_of::<Block>();
 
 /// The next run's offset in cache lines (2 blocks) within a page.
 static NEXT_STAGGER: AtomicUsize = AtomicUsize::new(0);

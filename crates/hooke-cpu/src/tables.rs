@@ -6,6 +6,7 @@ use hooke_core::Model;
 use crate::kernels::{
     B_END, GatherTable, IncidenceTable, IndexRows, SpringForces, SpringTable, Stiffness, ValueRows,
 };
+use crate::lanes::{CACHE_LINE, L1_SET_SPAN};
 use crate::layout::{LANES, Numbering, Slices};
 use crate::{Method, Topology};
 
@@ -101,11 +102,14 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
 /// thread.
 pub(crate) const SPRING_BLOCK: u32 = 1056;
 
-// A block's groups of forces (4 bytes a spring per axis) lie at least two cache lines apart
-// modulo 4 KiB, either way round (see above).
+// A block's groups of forces (a float a spring per axis) lie at least two cache lines apart
+// modulo the L1's set span, either way round (see above; `lanes` staggers its runs against
+// the same conflict).
 const _: () = {
-    let apart = SPRING_BLOCK as usize * 4 % 4096;
-    assert!(apart >= 128 && apart <= 4096 - 128 && (SPRING_BLOCK as usize).is_multiple_of(LANES));
+    let apart = SPRING_BLOCK as usize * std::mem::size_of::<f32>() % L1_SET_SPAN;
+    let margin = 2 * CACHE_LINE;
+    assert!(apart >= margin && apart <= L1_SET_SPAN - margin);
+    assert!((SPRING_BLOCK as usize).is_multiple_of(LANES));
 };
 
 /// The order the scatter force pass visits springs in. Structured meshes have a handful of
