@@ -3,9 +3,10 @@
 //! A scatter step writes a force per spring, then reads each back where it sums the forces at
 //! the vertices; on a mesh whose forces leave the caches, the second pass reads them all from
 //! memory again. The springs are ordered by blocks of [`SPRING_BLOCK`] first ends (see
-//! `tables::spring_order`), and every spring a vertex sums is owned by the vertex or by a lower
-//! one, so once the spring rows of the blocks up to `k` are computed, the vertices of block `k`
-//! can be summed and integrated while those forces are still in the cache.
+//! `tables::spring_order`), and every spring a vertex sums is owned by a vertex of its own block
+//! or of a lower one (`owned_rows` re-owns springs only within a block), so once the spring rows
+//! of the blocks up to `k` are computed, the vertices of block `k` can be summed and integrated
+//! while those forces are still in the cache.
 //!
 //! The blocks are cut into bands, one task each. A task computes its blocks' rows in order and
 //! after each block integrates the block's slices whose springs all lie in rows of its own band
@@ -99,9 +100,9 @@ impl Blocks {
         springs: &SpringTable,
         incidence: &IncidenceTable,
         slices: usize,
-        spring_count: usize,
         threads: usize,
     ) -> Option<Self> {
+        let spring_count = springs.slots;
         if slices < MIN_SLICES {
             return None;
         }

@@ -99,12 +99,23 @@ pub struct IndexRows {
     mask: u32,
 }
 
+/// How [`IndexRows`] stores its rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowForm {
+    /// Contiguous rows as their first entry, the others whole.
+    Runs,
+    /// Every row as point offsets when fewer than half are contiguous, else as runs: a table
+    /// the kernels read from points when most rows are gathered.
+    PointsIfGathered,
+    /// Every row as point offsets: a scatter spring end whose rows the force pass reads from
+    /// points, the contiguous ones from the axes.
+    Points,
+}
+
 impl IndexRows {
-    /// Flags rows whose masked indices run consecutively and stay below `limit`. With
-    /// `points`, stores point offsets instead when fewer than half do and every offset fits
-    /// below the flags: only for tables the kernels read from points (a table of offsets has
-    /// no rows to load from the axes).
-    pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize, points: bool) -> Self {
+    /// Flags rows whose masked indices run consecutively and stay below `limit`, and stores
+    /// them as `form` says; point offsets only where every offset fits below the flags.
+    pub fn new(rows: Vec<[u32; LANES]>, mask: u32, limit: usize, form: RowForm) -> Self {
         let contiguous: Vec<bool> = rows
             .iter()
             .map(|r| {
@@ -121,7 +132,12 @@ impl IndexRows {
             ..Self::default()
         };
         let offsets_fit = limit as u64 * u64::from(POINT_BYTES) <= u64::from(mask) + 1;
-        if points && table.mostly_gathered() && offsets_fit {
+        let points = match form {
+            RowForm::Runs => false,
+            RowForm::PointsIfGathered => table.mostly_gathered(),
+            RowForm::Points => true,
+        };
+        if points && offsets_fit {
             let offset = |entry: u32| (point_slot(entry & mask) * POINT_BYTES) | (entry & !mask);
             table.gathered = rows.into_iter().map(|r| r.map(offset)).collect();
             table.point_offsets = true;
@@ -165,6 +181,12 @@ impl IndexRows {
     #[inline(always)]
     pub fn point_offsets(&self) -> Option<&[[u32; LANES]]> {
         self.point_offsets.then_some(self.gathered.as_slice())
+    }
+
+    /// Per row, whether its masked indices run consecutively.
+    #[inline(always)]
+    pub fn contiguous_rows(&self) -> &[bool] {
+        &self.contiguous
     }
 
     pub fn bytes(&self) -> usize {
@@ -289,13 +311,16 @@ pub struct GatherTable {
     pub stiffness: Stiffness,
 }
 
-/// Edge-centric (ECA) springs, in rows of 8; the last row may hold zero-force padding springs.
+/// Edge-centric (ECA) springs, in rows of 8: the springs and any zero-force padding between
+/// them (an irregular mesh's blocks end in whole rows), then the last row's padding.
 #[derive(Clone, Debug)]
 pub struct SpringTable {
     pub a: IndexRows,
     pub b: IndexRows,
     pub rest_length: ValueRows,
     pub stiffness: Stiffness,
+    /// Slots before the last row's padding.
+    pub slots: usize,
 }
 
 /// Scatter's per-spring forces, as its force pass writes them and its accumulation reads them.
@@ -980,17 +1005,28 @@ fn spring_rows<S: Simd, const POINTS: bool>(
                     springs.b.point_offsets(),
                 )
             {
-                // An irregular mesh's rows, read in order: zipped, without bounds checks.
+                // An irregular mesh's rows, read in order: zipped, without bounds checks. Most
+                // rows' first ends are a slice's vertices (`owned_rows`): those load from
+                // the axes, three vector loads for eight point loads.
                 let range = first_row..first_row + rows.len();
-                let ends = a[range.clone()].iter().zip(&b[range.clone()]);
-                for ((row, (a, b)), out) in range.zip(ends).zip(rows) {
-                    // SAFETY: as in `load_positions_row`.
-                    let (a, b) = unsafe {
-                        (
-                            points.gather_points_at(simd, a, u32::MAX),
-                            points.gather_points_at(simd, b, u32::MAX),
-                        )
+                let runs = &springs.a.contiguous_rows()[range.clone()];
+                let ends = a[range.clone()].iter().zip(&b[range.clone()]).zip(runs);
+                for ((row, ((a, b), &run)), out) in range.zip(ends).zip(rows) {
+                    let a = if run {
+                        let first = point_at_slot(a[0] / POINT_BYTES) as usize;
+                        // Written out per axis: a closure would not inline.
+                        let [xs, ys, zs] = positions.axes;
+                        [
+                            simd.load(xs.run(first)),
+                            simd.load(ys.run(first)),
+                            simd.load(zs.run(first)),
+                        ]
+                    } else {
+                        // SAFETY: as in `load_positions_row`.
+                        unsafe { points.gather_points_at(simd, a, u32::MAX) }
                     };
+                    // SAFETY: as in `load_positions_row`.
+                    let b = unsafe { points.gather_points_at(simd, b, u32::MAX) };
                     let stiffness = simd.load(springs.stiffness.row(row));
                     let rest = springs.rest_length.load(simd, row);
                     simd.store_points(spring_force_rows(simd, a, b, stiffness, rest), out);

@@ -18,6 +18,7 @@ mod external;
 pub mod kernels;
 mod lanes;
 pub mod layout;
+mod owned_rows;
 mod ring;
 pub mod simd;
 mod sweep;
@@ -387,10 +388,7 @@ impl CpuSolver {
         self.blocks = match &self.topology {
             Topology::Scatter {
                 springs, incidence, ..
-            } => {
-                let spring_count = self.model.spring_count();
-                blocks::Blocks::plan(springs, incidence, slices, spring_count, threads)
-            }
+            } => blocks::Blocks::plan(springs, incidence, slices, threads),
             Topology::Gather(_) => None,
         };
     }

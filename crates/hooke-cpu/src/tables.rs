@@ -4,11 +4,12 @@
 use hooke_core::Model;
 
 use crate::kernels::{
-    B_END, GatherTable, IncidenceTable, IndexRows, SpringForces, SpringTable, Stiffness, ValueRows,
+    B_END, GatherTable, IncidenceTable, IndexRows, RowForm, SpringForces, SpringTable, Stiffness,
+    ValueRows,
 };
 use crate::lanes::{CACHE_LINE, L1_SET_SPAN};
 use crate::layout::{LANES, Numbering, Slices};
-use crate::{Method, Topology};
+use crate::{Method, Topology, owned_rows};
 
 pub(crate) fn into_blocks<T: Copy + Default>(values: Vec<T>) -> Vec<[T; LANES]> {
     values
@@ -77,7 +78,7 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
             u32::MAX,
             numbering.padded_len,
             // The force pass reads the positions as points when most rows are gathered.
-            true,
+            RowForm::PointsIfGathered,
         ),
         rest_length: ValueRows::new(into_blocks(entries.iter().map(|e| e.1).collect())),
         stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
@@ -112,13 +113,21 @@ const _: () = {
     assert!((SPRING_BLOCK as usize).is_multiple_of(LANES));
 };
 
+/// A slot of the scatter force pass: a model spring, or zero-force padding (both ends the
+/// vertex given) that keeps the next block's rows whole.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Slot {
+    Spring(u32),
+    Padding(u32),
+}
+
 /// The order the scatter force pass visits springs in. Structured meshes have a handful of
 /// index offsets `b - a` (3 on a grid); grouping springs by offset, then by `a`, makes both
 /// ends of 8 consecutive springs consecutive vertices, so a row loads with vector loads. The
 /// groups are formed within blocks of [`SPRING_BLOCK`] first ends, so the pass reads the
-/// positions once rather than once per offset. Other meshes are ordered by first end, which
-/// keeps position reads nearly sequential.
-fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
+/// positions once rather than once per offset. Other meshes are laid out in rows whose first
+/// ends are a slice's vertices (`owned_rows`, which may re-own springs in `ends`).
+fn spring_order(ends: &mut [[u32; 2]], vertices: usize) -> Vec<Slot> {
     const MAX_CLASSES: usize = 16;
     let offset = |s: u32| i64::from(ends[s as usize][1]) - i64::from(ends[s as usize][0]);
     let mut counts = std::collections::HashMap::<i64, usize>::new();
@@ -129,45 +138,72 @@ fn spring_order(ends: &[[u32; 2]]) -> Vec<u32> {
     common.sort_unstable_by(|a, b| b.cmp(a));
     common.truncate(MAX_CLASSES);
     let covered: usize = common.iter().map(|(c, _)| c).sum();
-    let mut order: Vec<u32> = (0..ends.len() as u32).collect();
-    if covered * 10 >= ends.len() * 9 {
-        let class: std::collections::HashMap<i64, usize> = common
-            .iter()
-            .enumerate()
-            .map(|(rank, (_, o))| (*o, rank))
-            .collect();
-        let key = |s: u32| {
-            let [a, b] = ends[s as usize];
-            let class = class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES);
-            (a / SPRING_BLOCK, class, a, b)
-        };
-        order.sort_by_cached_key(|&s| key(s));
-    } else {
-        order.sort_by_key(|&s| {
-            let [a, b] = ends[s as usize];
-            (a.min(b), a.max(b))
-        });
+    if covered * 10 < ends.len() * 9 {
+        return owned_rows::order(ends, vertices);
     }
-    order
+    let class: std::collections::HashMap<i64, usize> = common
+        .iter()
+        .enumerate()
+        .map(|(rank, (_, o))| (*o, rank))
+        .collect();
+    let key = |s: u32| {
+        let [a, b] = ends[s as usize];
+        let class = class.get(&offset(s)).copied().unwrap_or(MAX_CLASSES);
+        (a / SPRING_BLOCK, class, a, b)
+    };
+    let mut order: Vec<u32> = (0..ends.len() as u32).collect();
+    order.sort_by_cached_key(|&s| key(s));
+    order.into_iter().map(Slot::Spring).collect()
 }
 
-/// The springs' ends in internal numbering (lower first), the order the scatter force pass
-/// visits them in, and each model spring's place in it.
-fn scatter_order(model: &Model, numbering: &Numbering) -> (Vec<[u32; 2]>, Vec<u32>, Vec<u32>) {
-    let ends: Vec<[u32; 2]> = model
-        .spring_ends
-        .iter()
-        .map(|e| {
-            let [a, b] = e.map(|v| numbering.internal[v as usize]);
-            [a.min(b), a.max(b)]
-        })
-        .collect();
-    let order = spring_order(&ends);
-    let mut slot_of = vec![0u32; model.spring_count()];
-    for (slot, &s) in order.iter().enumerate() {
-        slot_of[s as usize] = slot as u32;
+/// How the scatter force pass reads the springs: per model spring its ends (owner first),
+/// the slots in order, and each model spring's slot.
+struct ScatterOrder {
+    ends: Vec<[u32; 2]>,
+    slots: Vec<Slot>,
+    slot_of: Vec<u32>,
+}
+
+impl ScatterOrder {
+    fn new(model: &Model, numbering: &Numbering) -> Self {
+        let mut ends: Vec<[u32; 2]> = model
+            .spring_ends
+            .iter()
+            .map(|e| {
+                let [a, b] = e.map(|v| numbering.internal[v as usize]);
+                [a.min(b), a.max(b)]
+            })
+            .collect();
+        let slots = spring_order(&mut ends, numbering.padded_len);
+        let mut slot_of = vec![0u32; model.spring_count()];
+        for (slot, s) in slots.iter().enumerate() {
+            if let Slot::Spring(s) = s {
+                slot_of[*s as usize] = slot as u32;
+            }
+        }
+        Self {
+            ends,
+            slots,
+            slot_of,
+        }
     }
-    (ends, order, slot_of)
+
+    /// The ends of the spring in `slot`, owner first.
+    fn slot_ends(&self, slot: Slot) -> [u32; 2] {
+        match slot {
+            Slot::Spring(s) => self.ends[s as usize],
+            Slot::Padding(v) => [v, v],
+        }
+    }
+
+    /// Per slot, its spring's value, and zero for padding.
+    fn per_slot(&self, value: impl Fn(usize) -> f32) -> Vec<f32> {
+        let of = |slot: &Slot| match slot {
+            Slot::Spring(s) => value(*s as usize),
+            Slot::Padding(_) => 0.0,
+        };
+        self.slots.iter().map(of).collect()
+    }
 }
 
 /// Per model spring, the entries holding its stiffness in `method`'s table: gather has one at
@@ -189,8 +225,8 @@ pub(crate) fn stiffness_entries(
             }
         }
         Method::Scatter => {
-            let (_, _, slot_of) = scatter_order(model, numbering);
-            for (ends, slot) in entries.iter_mut().zip(slot_of) {
+            let order = ScatterOrder::new(model, numbering);
+            for (ends, slot) in entries.iter_mut().zip(order.slot_of) {
                 ends[0] = slot;
             }
         }
@@ -202,9 +238,8 @@ pub(crate) fn scatter_tables(
     model: &Model,
     numbering: &Numbering,
 ) -> (SpringTable, IncidenceTable) {
-    // `slot_of[s]` is model spring s's place in the force pass and force buffer.
-    let (ends, order, slot_of) = scatter_order(model, numbering);
-    let rows = model.spring_count().div_ceil(LANES);
+    let order = ScatterOrder::new(model, numbering);
+    let rows = order.slots.len().div_ceil(LANES);
     let zero_slot = (rows * LANES) as u32;
     let adjacency = &model.adjacency;
     let (slices, entries) = Slices::build(
@@ -212,8 +247,8 @@ pub(crate) fn scatter_tables(
         numbering,
         |k, e| {
             let spring = adjacency.springs[e] as usize;
-            let is_b_end = ends[spring][1] as usize == k;
-            slot_of[spring] | if is_b_end { B_END } else { 0 }
+            let is_b_end = order.ends[spring][1] as usize == k;
+            order.slot_of[spring] | if is_b_end { B_END } else { 0 }
         },
         |_| zero_slot,
     );
@@ -223,34 +258,34 @@ pub(crate) fn scatter_tables(
             into_blocks(entries),
             !B_END,
             zero_slot as usize + LANES,
-            true,
+            RowForm::PointsIfGathered,
         ),
     };
-    // The force pass reads the positions as points when the spring forces are points.
-    let points = incidence.entry.mostly_gathered();
+    // The force pass reads the positions as points when the spring forces are points, and
+    // then every row of both ends as point offsets (rows whose first ends are a slice's
+    // vertices load those from the axes).
+    let form = if incidence.entry.mostly_gathered() {
+        RowForm::Points
+    } else {
+        RowForm::Runs
+    };
     let end_rows = |end: usize| {
+        let ends = order.slots.iter().map(|&slot| order.slot_ends(slot)[end]);
         IndexRows::new(
-            into_blocks(order.iter().map(|&s| ends[s as usize][end]).collect()),
+            into_blocks(ends.collect()),
             u32::MAX,
             numbering.padded_len,
-            points,
+            form,
         )
     };
     let springs = SpringTable {
         a: end_rows(0),
         b: end_rows(1),
         rest_length: ValueRows::new(into_blocks(
-            order
-                .iter()
-                .map(|&s| model.rest_lengths[s as usize] as f32)
-                .collect(),
+            order.per_slot(|s| model.rest_lengths[s] as f32),
         )),
-        stiffness: stiffness_of(model, || {
-            order
-                .iter()
-                .map(|&s| model.stiffnesses[s as usize] as f32)
-                .collect()
-        }),
+        stiffness: stiffness_of(model, || order.per_slot(|s| model.stiffnesses[s] as f32)),
+        slots: order.slots.len(),
     };
     (springs, incidence)
 }
@@ -341,6 +376,39 @@ mod tests {
         }
     }
 
+    /// An irregular mesh's springs are re-owned within blocks so that nearly every row's
+    /// first ends are one slice's 8 vertices (three vector loads instead of eight point
+    /// loads); a spring across blocks stays with its lower end, and blocks end in whole rows.
+    #[test]
+    fn most_of_an_irregular_meshs_spring_rows_start_at_a_slices_vertices() {
+        let Topology::Scatter { springs, .. } = topology_of(
+            MeshSection::unit_irregular(16384, 1),
+            16384,
+            Method::Scatter,
+        ) else {
+            unreachable!("scatter builds scatter tables");
+        };
+        let share = springs.a.contiguous_share();
+        assert!(share > 0.9, "rows of a slice's vertices: {share}");
+        let mut last_block = 0;
+        for row in 0..springs.slots / LANES {
+            let (a, b) = (springs.a.row(row), springs.b.row(row));
+            let blocks: Vec<u32> = a.iter().map(|a| a / SPRING_BLOCK).collect();
+            assert!(
+                blocks.iter().all(|k| *k == blocks[0]),
+                "row {row} spans blocks"
+            );
+            assert!(blocks[0] >= last_block, "row {row} goes back a block");
+            last_block = blocks[0];
+            for (a, b) in a.into_iter().zip(b) {
+                assert!(
+                    a / SPRING_BLOCK == b / SPRING_BLOCK || a < b,
+                    "{a} owns {b}"
+                );
+            }
+        }
+    }
+
     /// An irregular mesh's rows are stored as point offsets, which read back as the same
     /// indices and flags; a grid's are not.
     #[test]
@@ -380,11 +448,11 @@ mod tests {
         // Offsets that would reach the flag bits are not used.
         let rows = vec![[0, 9, 3, 1, 7, 2, 5, 4]; 4];
         assert!(
-            IndexRows::new(rows.clone(), !B_END, 1 << 27, true)
+            IndexRows::new(rows.clone(), !B_END, 1 << 27, RowForm::Points)
                 .point_offsets()
                 .is_some()
         );
-        let too_far = IndexRows::new(rows, !B_END, (1 << 27) + 1, true);
+        let too_far = IndexRows::new(rows, !B_END, (1 << 27) + 1, RowForm::Points);
         assert!(too_far.point_offsets().is_none());
         assert_eq!(too_far.row(2), [0, 9, 3, 1, 7, 2, 5, 4]);
     }

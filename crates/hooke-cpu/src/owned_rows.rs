@@ -1,0 +1,288 @@
+//! The scatter force pass's order for an irregular mesh: rows of 8 springs whose first ends
+//! are one slice's 8 vertices, so the row loads them with vector loads from the axes and only
+//! the far ends lane by lane (8 point loads a row instead of 16).
+//!
+//! A spring's force is the same bits whichever end owns it (`fl(a - b) = -fl(b - a)`), so the
+//! owners are free but for one rule of the blocks (`blocks`): a spring whose ends lie in two
+//! blocks of [`SPRING_BLOCK`] first ends is owned by the lower one. Owned by the lower
+//! vertex, the bench mesh's vertices own 0 to 11 springs, and only 49% of the springs fill
+//! rows in which every vertex of a slice has one; [`balance`] moves the ownership of springs
+//! within a block so that each slice's vertices own nearly equal numbers (the same for all
+//! eight where it can), and [`rows`] lays out each block's slices' full rows, then the
+//! springs left over, ordered by first end.
+
+use crate::layout::LANES;
+use crate::tables::{SPRING_BLOCK, Slot};
+
+/// Vertices one search for a vertex with a spring to spare visits at most: the searches stay
+/// short and their cost linear in the mesh.
+const SEARCH_LIMIT: usize = 256;
+
+/// The slots of `ends`' springs (each `[owner, other]`, re-owned in place) in rows of
+/// slices' own springs, block by block; `vertices` is the padded vertex count.
+pub(crate) fn order(ends: &mut [[u32; 2]], vertices: usize) -> Vec<Slot> {
+    balance(ends, vertices);
+    rows(ends, vertices)
+}
+
+fn block_of(v: u32) -> u32 {
+    v / SPRING_BLOCK
+}
+
+/// Per vertex, the springs at it (either end) whose ends share a block, as ranges of one list.
+struct FreeSprings {
+    start: Vec<u32>,
+    springs: Vec<u32>,
+}
+
+impl FreeSprings {
+    fn new(ends: &[[u32; 2]], vertices: usize) -> Self {
+        let mut start = vec![0u32; vertices + 1];
+        let free = |e: &[u32; 2]| block_of(e[0]) == block_of(e[1]);
+        for e in ends.iter().filter(|e| free(e)) {
+            start[e[0] as usize + 1] += 1;
+            start[e[1] as usize + 1] += 1;
+        }
+        for v in 0..vertices {
+            start[v + 1] += start[v];
+        }
+        let mut fill = start.clone();
+        let mut springs = vec![0u32; start[vertices] as usize];
+        for (s, e) in ends.iter().enumerate().filter(|(_, e)| free(e)) {
+            for v in *e {
+                springs[fill[v as usize] as usize] = s as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Self { start, springs }
+    }
+
+    fn at(&self, v: u32) -> &[u32] {
+        &self.springs[self.start[v as usize] as usize..self.start[v as usize + 1] as usize]
+    }
+}
+
+/// Re-owns springs within blocks so that each slice's vertices own at least `m` springs
+/// each, `m` as high as the searches find: first half their valence (rounded down) for the
+/// slice's lowest, then one more where every vertex of the slice finds one. A vertex short of
+/// its target takes a spring from a neighbour with one to spare, or along a path of owners
+/// (each passes one on), so nobody falls below their own target.
+fn balance(ends: &mut [[u32; 2]], vertices: usize) {
+    let free = FreeSprings::new(ends, vertices);
+    let mut valence = vec![0u32; vertices];
+    let mut owned = vec![0u32; vertices];
+    let mut fixed = vec![0u32; vertices];
+    for e in ends.iter() {
+        valence[e[0] as usize] += 1;
+        valence[e[1] as usize] += 1;
+        owned[e[0] as usize] += 1;
+        if block_of(e[0]) != block_of(e[1]) {
+            fixed[e[0] as usize] += 1;
+        }
+    }
+    let most = |v: usize| (fixed[v] + free.at(v as u32).len() as u32).min(valence[v] / 2);
+    let mut target = vec![0u32; vertices];
+    for slice in target.chunks_mut(LANES).enumerate() {
+        let (s, lanes) = slice;
+        let m = (s * LANES..(s + 1) * LANES).map(most).min().unwrap_or(0);
+        lanes.fill(m);
+    }
+    let mut search = Search::new(vertices);
+    for v in 0..vertices as u32 {
+        while owned[v as usize] < target[v as usize] {
+            if !search.take_one(v, ends, &free, &mut owned, &target) {
+                break;
+            }
+        }
+    }
+    // One more each where a whole slice finds it.
+    for s in 0..vertices / LANES {
+        let lanes = s * LANES..(s + 1) * LANES;
+        if lanes.clone().any(|v| valence[v] == 0) {
+            continue;
+        }
+        let raised = target[s * LANES] + 1;
+        target[lanes.clone()].fill(raised);
+        let all = lanes.clone().all(|v| {
+            owned[v] >= raised || search.take_one(v as u32, ends, &free, &mut owned, &target)
+        });
+        if !all {
+            target[lanes].fill(raised - 1);
+        }
+    }
+}
+
+/// Breadth-first searches from a vertex short of springs back along the springs owned into
+/// it, for an owner with one to spare.
+struct Search {
+    /// The search that last reached each vertex, and from where, by which spring.
+    seen: Vec<u32>,
+    from: Vec<(u32, u32)>,
+    epoch: u32,
+    queue: Vec<u32>,
+}
+
+impl Search {
+    fn new(vertices: usize) -> Self {
+        Self {
+            seen: vec![0; vertices],
+            from: vec![(0, 0); vertices],
+            epoch: 0,
+            queue: Vec::with_capacity(SEARCH_LIMIT),
+        }
+    }
+
+    /// Gives `v` one more spring, taken along a path of owners from one that owns more than
+    /// its target; false if the search finds none.
+    fn take_one(
+        &mut self,
+        v: u32,
+        ends: &mut [[u32; 2]],
+        free: &FreeSprings,
+        owned: &mut [u32],
+        target: &[u32],
+    ) -> bool {
+        self.epoch += 1;
+        self.queue.clear();
+        self.queue.push(v);
+        self.seen[v as usize] = self.epoch;
+        let mut head = 0;
+        while head < self.queue.len() {
+            let u = self.queue[head];
+            head += 1;
+            for &s in free.at(u) {
+                let [owner, other] = ends[s as usize];
+                if other != u || self.seen[owner as usize] == self.epoch {
+                    continue;
+                }
+                self.seen[owner as usize] = self.epoch;
+                self.from[owner as usize] = (u, s);
+                if owned[owner as usize] > target[owner as usize] {
+                    // Each spring on the path passes to the vertex it led from.
+                    let mut x = owner;
+                    while x != v {
+                        let (u, s) = self.from[x as usize];
+                        ends[s as usize] = [u, x];
+                        x = u;
+                    }
+                    owned[owner as usize] -= 1;
+                    owned[v as usize] += 1;
+                    return true;
+                }
+                if self.queue.len() < SEARCH_LIMIT {
+                    self.queue.push(owner);
+                }
+            }
+        }
+        false
+    }
+}
+
+/// Block by block: for each slice, as many rows as its vertices all own springs (row `k`
+/// holding each vertex's `k`-th, by far end), then the block's springs left over by first
+/// end and far end, padded to a whole row so that the next block's rows start whole.
+fn rows(ends: &[[u32; 2]], vertices: usize) -> Vec<Slot> {
+    let mut start = vec![0u32; vertices + 1];
+    for e in ends {
+        start[e[0] as usize + 1] += 1;
+    }
+    for v in 0..vertices {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut owned = vec![0u32; ends.len()];
+    for (s, e) in ends.iter().enumerate() {
+        owned[fill[e[0] as usize] as usize] = s as u32;
+        fill[e[0] as usize] += 1;
+    }
+    for v in 0..vertices {
+        let range = start[v] as usize..start[v + 1] as usize;
+        owned[range].sort_by_key(|&s| ends[s as usize][1]);
+    }
+    let springs_of = |v: usize| &owned[start[v] as usize..start[v + 1] as usize];
+    let mut slots = Vec::with_capacity(ends.len() + ends.len() / 8);
+    let block = SPRING_BLOCK as usize;
+    for first in (0..vertices).step_by(block) {
+        let block_vertices = first..(first + block).min(vertices);
+        let mut full = vec![0usize; block_vertices.len()];
+        for s in block_vertices.clone().step_by(LANES) {
+            let lanes = s..s + LANES;
+            let m = lanes
+                .clone()
+                .map(|v| springs_of(v).len())
+                .min()
+                .unwrap_or(0);
+            for k in 0..m {
+                slots.extend(lanes.clone().map(|v| Slot::Spring(springs_of(v)[k])));
+            }
+            full[s - first..s - first + LANES].fill(m);
+        }
+        let before = slots.len();
+        for v in block_vertices.clone() {
+            let rest = &springs_of(v)[full[v - first]..];
+            slots.extend(rest.iter().map(|&s| Slot::Spring(s)));
+        }
+        if slots.len() > before {
+            let last = block_vertices.end as u32 - 1;
+            while !slots.len().is_multiple_of(LANES) {
+                slots.push(Slot::Padding(last));
+            }
+        }
+    }
+    slots
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every spring keeps its two ends, and one crossing blocks stays with the lower.
+    #[test]
+    fn balancing_only_re_owns_springs_within_blocks() {
+        let n = 2 * SPRING_BLOCK;
+        // A strip of triangles: vertex v joined to v + 1 and v + 2.
+        let mut ends: Vec<[u32; 2]> = (0..n - 2).flat_map(|v| [[v, v + 1], [v, v + 2]]).collect();
+        let before = ends.clone();
+        let slots = order(&mut ends, n as usize);
+        for (e, b) in ends.iter().zip(&before) {
+            let (mut e, mut b) = (*e, *b);
+            if block_of(b[0]) != block_of(b[1]) {
+                assert_eq!(e, b, "a spring across blocks changed owner");
+            }
+            e.sort_unstable();
+            b.sort_unstable();
+            assert_eq!(e, b);
+        }
+        let mut seen: Vec<u32> = slots
+            .iter()
+            .filter_map(|s| match s {
+                Slot::Spring(s) => Some(*s),
+                Slot::Padding(_) => None,
+            })
+            .collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..ends.len() as u32).collect::<Vec<_>>());
+        // Every vertex of the strip has valence 4 but at its ends, so owns 2 in full rows.
+        let full_rows = slots
+            .chunks(LANES)
+            .filter(|row| {
+                let firsts: Vec<u32> = row
+                    .iter()
+                    .map(|s| match s {
+                        Slot::Spring(s) => ends[*s as usize][0],
+                        Slot::Padding(v) => *v,
+                    })
+                    .collect();
+                firsts[0].is_multiple_of(LANES as u32)
+                    && firsts
+                        .iter()
+                        .enumerate()
+                        .all(|(k, a)| *a == firsts[0] + k as u32)
+            })
+            .count();
+        assert!(
+            full_rows * LANES * 10 >= ends.len() * 9,
+            "{full_rows} full rows"
+        );
+    }
+}
