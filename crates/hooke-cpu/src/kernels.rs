@@ -18,6 +18,8 @@
 //! own precision, and only `x + d` rounds, without feeding back into the velocity.
 
 pub use crate::lanes::{Lanes, Soa};
+use std::ops::Range;
+
 use crate::layout::{LANES, Slices};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
@@ -89,8 +91,9 @@ impl Stiffness {
 /// 0.37 to 0.29 ms (scatter; see the README).
 #[derive(Clone, Debug, Default)]
 pub struct IndexRows {
-    /// Per row: its lane-0 entry if contiguous, else its position in `gathered`. Empty when
-    /// the rows are point offsets.
+    /// Per row: its lane-0 entry if contiguous, else its position in `gathered`. When the
+    /// rows are point offsets: empty, or with [`RowForm::Points`] the lane-0 entry of a
+    /// contiguous row and 0 for others.
     head: Vec<u32>,
     contiguous: Vec<bool>,
     gathered: Vec<[u32; LANES]>,
@@ -139,6 +142,11 @@ impl IndexRows {
         };
         if points && offsets_fit {
             let offset = |entry: u32| (point_slot(entry & mask) * POINT_BYTES) | (entry & !mask);
+            let first = |(r, &run): (&[u32; LANES], &bool)| if run { r[0] & mask } else { 0 };
+            if form == RowForm::Points {
+                // Read by the force pass (`IndexRows::runs`).
+                table.head = rows.iter().zip(&table.contiguous).map(first).collect();
+            }
             table.gathered = rows.into_iter().map(|r| r.map(offset)).collect();
             table.point_offsets = true;
             return table;
@@ -183,15 +191,23 @@ impl IndexRows {
         self.point_offsets.then_some(self.gathered.as_slice())
     }
 
-    /// Per row, whether its masked indices run consecutively.
+    /// Per row of a table stored in [`RowForm::Points`], its first index if its indices
+    /// run consecutively (below the `limit` it was built with), else `None`.
     #[inline(always)]
-    pub fn contiguous_rows(&self) -> &[bool] {
-        &self.contiguous
+    fn runs(&self, rows: Range<usize>) -> impl Iterator<Item = Option<u32>> {
+        let heads = &self.head[rows.clone()];
+        let runs = &self.contiguous[rows];
+        heads.iter().zip(runs).map(|(&h, &run)| run.then_some(h))
     }
 
     pub fn bytes(&self) -> usize {
         if self.point_offsets {
-            return std::mem::size_of_val(self.gathered.as_slice());
+            let runs = if self.head.is_empty() {
+                0
+            } else {
+                std::mem::size_of_val(self.head.as_slice()) + self.contiguous.len()
+            };
+            return std::mem::size_of_val(self.gathered.as_slice()) + runs;
         }
         std::mem::size_of_val(self.head.as_slice())
             + self.contiguous.len()
@@ -958,6 +974,37 @@ fn spring_row_force<S: Simd, const POINTS: bool>(
     spring_force_rows(simd, a, b, stiffness, springs.rest_length.load(simd, row))
 }
 
+/// Both ends of an irregular mesh's spring row: a run of first ends (a slice's vertices,
+/// `owned_rows`) with three vector loads from the axes, others and the far ends point by
+/// point.
+///
+/// # Safety
+/// A run must start at least 8 floats before the end of the axes, and every offset must be
+/// that of a point in bounds (see [`Simd::gather_points_at`]).
+#[inline(always)]
+unsafe fn irregular_row_ends<S: Simd>(
+    simd: S,
+    [xs, ys, zs]: [Floats<'_>; 3],
+    points: Points<'_>,
+    ((a, b), run): ((&[u32; LANES], &[u32; LANES]), Option<u32>),
+) -> ([S::V; 3], [S::V; 3]) {
+    // SAFETY: the caller's guarantee.
+    unsafe {
+        let a = match run {
+            Some(first) => {
+                let first = first as usize;
+                [
+                    simd.load(xs.run_unchecked(first)),
+                    simd.load(ys.run_unchecked(first)),
+                    simd.load(zs.run_unchecked(first)),
+                ]
+            }
+            None => points.gather_points_at(simd, a, u32::MAX),
+        };
+        (a, points.gather_points_at(simd, b, u32::MAX))
+    }
+}
+
 #[inline(always)]
 fn spring_forces_with<S: Simd>(
     simd: S,
@@ -1005,28 +1052,30 @@ fn spring_rows<S: Simd, const POINTS: bool>(
                     springs.b.point_offsets(),
                 )
             {
-                // An irregular mesh's rows, read in order: zipped, without bounds checks. Most
-                // rows' first ends are a slice's vertices (`owned_rows`): those load from
-                // the axes, three vector loads for eight point loads.
+                // An irregular mesh's rows, read in order: zipped, without bounds checks.
                 let range = first_row..first_row + rows.len();
-                let runs = &springs.a.contiguous_rows()[range.clone()];
+                let runs = springs.a.runs(range.clone());
                 let ends = a[range.clone()].iter().zip(&b[range.clone()]).zip(runs);
-                for ((row, ((a, b), &run)), out) in range.zip(ends).zip(rows) {
-                    let a = if run {
-                        let first = point_at_slot(a[0] / POINT_BYTES) as usize;
-                        // Written out per axis: a closure would not inline.
-                        let [xs, ys, zs] = positions.axes;
-                        [
-                            simd.load(xs.run(first)),
-                            simd.load(ys.run(first)),
-                            simd.load(zs.run(first)),
-                        ]
-                    } else {
-                        // SAFETY: as in `load_positions_row`.
-                        unsafe { points.gather_points_at(simd, a, u32::MAX) }
-                    };
-                    // SAFETY: as in `load_positions_row`.
-                    let b = unsafe { points.gather_points_at(simd, b, u32::MAX) };
+                if let (Some(rest), Some(stiffness)) = (
+                    springs.rest_length.whole_rows(),
+                    springs.stiffness.uniform_row(),
+                ) {
+                    let stiffness = simd.load(stiffness);
+                    let rest = &rest[range];
+                    for ((ends, rest), out) in ends.zip(rest).zip(rows) {
+                        // SAFETY: `IndexRows::new` built the runs and offsets of both ends
+                        // from vertex indices below `padded_len`, the length of the axes
+                        // and the points.
+                        let (a, b) =
+                            unsafe { irregular_row_ends(simd, positions.axes, points, ends) };
+                        let f = spring_force_rows(simd, a, b, stiffness, simd.load(rest));
+                        simd.store_points(f, out);
+                    }
+                    return;
+                }
+                for ((row, ends), out) in range.zip(ends).zip(rows) {
+                    // SAFETY: as above.
+                    let (a, b) = unsafe { irregular_row_ends(simd, positions.axes, points, ends) };
                     let stiffness = simd.load(springs.stiffness.row(row));
                     let rest = springs.rest_length.load(simd, row);
                     simd.store_points(spring_force_rows(simd, a, b, stiffness, rest), out);

@@ -82,6 +82,17 @@ impl<'a> Floats<'a> {
         unsafe { &*self.start.add(first).cast::<Block>() }
     }
 
+    /// [`Floats::run`] without the bounds check.
+    ///
+    /// # Safety
+    /// `first + 8` must not exceed the view's length.
+    #[inline(always)]
+    pub unsafe fn run_unchecked(&self, first: usize) -> &'a Block {
+        debug_assert!(first + LANES <= self.len, "run out of bounds");
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { &*self.start.add(first).cast::<Block>() }
+    }
+
     /// `values[index[lane] & mask]` per lane.
     ///
     /// # Safety
