@@ -448,11 +448,11 @@ macro_rules! dispatch {
         pub fn $name(isa: InstructionSet, $($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             if let (InstructionSet::Best, Some(avx2)) = (isa, Avx2::detect()) {
-                #[target_feature(enable = "avx2")]
+                #[target_feature(enable = "avx2,bmi1")]
                 fn with_avx2(simd: Avx2, $($arg: $ty),*) -> $ret {
                     $generic(simd, $($arg),*)
                 }
-                // SAFETY: `Avx2::detect` found AVX2 on this CPU.
+                // SAFETY: `Avx2::detect` found AVX2 and BMI1 on this CPU.
                 return unsafe { with_avx2(avx2, $($arg),*) };
             }
             let _ = isa;
