@@ -445,7 +445,7 @@ mod tests {
         // Byte offsets with the flag in either half of a pair: cleared by `bextr` (a mask of
         // low bits), by a shift and an `and` (another mask), or not at all.
         let mut offsets =
-            index.map(|i| point_slot(i & !0x8000_0000) * POINT_BYTES | i & 0x8000_0000);
+            index.map(|i| (point_slot(i & !0x8000_0000) * POINT_BYTES) | (i & 0x8000_0000));
         offsets[0] |= 0x8000_0000;
         for mask in [!0x8000_0000, !0x8000_0001] {
             // SAFETY: every masked offset is a point below 40.
