@@ -82,8 +82,7 @@ fn balance(ends: &mut [[u32; 2]], vertices: usize) {
     }
     let most = |v: usize| (fixed[v] + free.at(v as u32).len() as u32).min(valence[v] / 2);
     let mut target = vec![0u32; vertices];
-    for slice in target.chunks_mut(LANES).enumerate() {
-        let (s, lanes) = slice;
+    for (s, lanes) in target.chunks_mut(LANES).enumerate() {
         let m = (s * LANES..(s + 1) * LANES).map(most).min().unwrap_or(0);
         lanes.fill(m);
     }
