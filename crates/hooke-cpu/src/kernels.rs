@@ -1,8 +1,9 @@
 //! The per-chunk kernels of one time step, written as 8-lane loops that LLVM turns into SIMD.
 //!
 //! Each public kernel handles a contiguous chunk of slices (or spring rows). It is written once,
-//! generic over [`Simd`], and runs with AVX2 where the CPU has it, else portably; no kernel uses
-//! fused multiply-add or reassociates, so both give bit-identical results.
+//! generic over [`Simd`], and runs with AVX2 where the CPU has it, else portably; no kernel
+//! reassociates or fuses a multiply-add whose product rounds (the one fused multiply-add,
+//! [`Simd::add_signed`], multiplies by +1 or -1), so both give bit-identical results.
 //!
 //! Spring force (paper eq. 1, sign of eq. 4) on vertex `i` from spring `ij`:
 //! `D_ij (1 - |l0_ij| / |l_ij|) (x_j - x_i)`. Swapping `i` and `j` negates `x_j - x_i` exactly in
@@ -448,11 +449,11 @@ macro_rules! dispatch {
         pub fn $name(isa: InstructionSet, $($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             if let (InstructionSet::Best, Some(avx2)) = (isa, Avx2::detect()) {
-                #[target_feature(enable = "avx2,bmi1")]
+                #[target_feature(enable = "avx2,bmi1,fma")]
                 fn with_avx2(simd: Avx2, $($arg: $ty),*) -> $ret {
                     $generic(simd, $($arg),*)
                 }
-                // SAFETY: `Avx2::detect` found AVX2 and BMI1 on this CPU.
+                // SAFETY: `Avx2::detect` found AVX2, BMI1 and FMA on this CPU.
                 return unsafe { with_avx2(avx2, $($arg),*) };
             }
             let _ = isa;
@@ -619,17 +620,6 @@ fn add3<S: Simd>(simd: S, a: [S::V; 3], b: [S::V; 3]) -> [S::V; 3] {
     ]
 }
 
-/// Each axis of `force` with its sign flipped in the lanes whose `sign` word has its top bit
-/// set (see [`Simd::flip_sign`]).
-#[inline(always)]
-fn flip_sign3<S: Simd>(simd: S, [x, y, z]: [S::V; 3], sign: &[u32; LANES]) -> [S::V; 3] {
-    [
-        simd.flip_sign(x, sign),
-        simd.flip_sign(y, sign),
-        simd.flip_sign(z, sign),
-    ]
-}
-
 /// Sums the incident spring forces of `slice`'s vertices from three axes. Flipping the sign
 /// bit negates exactly: the force on the spring's far end.
 #[inline(always)]
@@ -649,7 +639,9 @@ fn accumulate_slice<S: Simd>(
     force
 }
 
-/// [`accumulate_slice`] from one point per spring slot.
+/// [`accumulate_slice`] from one point per spring slot: each row's 8 points added as
+/// loaded, two to a value, their signs applied by the same (exact) operation, and the sums
+/// transposed once per slice instead of once per row. The same additions in the same order.
 #[inline(always)]
 fn accumulate_points_slice<S: Simd>(
     simd: S,
@@ -657,24 +649,33 @@ fn accumulate_points_slice<S: Simd>(
     points: Points<'_>,
     slice: usize,
 ) -> [S::V; 3] {
-    let mut force = [simd.splat(0.0); 3];
+    let mut sum = [simd.splat(0.0); 4];
+    let add = |sum: [S::V; 4], f: [S::V; 4], sign: [S::V; 4]| {
+        [
+            simd.add_signed(sum[0], f[0], sign[0]),
+            simd.add_signed(sum[1], f[1], sign[1]),
+            simd.add_signed(sum[2], f[2], sign[2]),
+            simd.add_signed(sum[3], f[3], sign[3]),
+        ]
+    };
     let rows = table.slices.rows(slice);
     if let Some(offsets) = table.entry.point_offsets() {
         for offsets in &offsets[rows] {
-            // SAFETY: as below, and `IndexRows::new` made the offsets from those slots.
-            let f = unsafe { points.gather_points_at(simd, offsets, !B_END) };
-            force = add3(simd, force, flip_sign3(simd, f, offsets));
+            // SAFETY: `IndexRows::new` made the offsets from spring slots below the force
+            // buffer's length (the springs' rows and one row of zeros for padding).
+            let f = unsafe { points.point_pairs_at(simd, offsets, !B_END) };
+            sum = add(sum, f, simd.pair_signs(offsets));
         }
-        return force;
+        return simd.transpose_point_pairs(sum);
     }
     for row in rows {
         let index = table.entry.row(row);
-        // SAFETY: `CpuSolver::new` builds every spring slot (masked) below the buffer's
-        // length: the springs' rows and one row of zeros for padding.
-        let f = unsafe { points.gather_points(simd, &index, !B_END) };
-        force = add3(simd, force, flip_sign3(simd, f, &index));
+        let offsets = index.map(|e| (point_slot(e & !B_END) * POINT_BYTES) | (e & B_END));
+        // SAFETY: as above, for slots this table holds.
+        let f = unsafe { points.point_pairs_at(simd, &offsets, !B_END) };
+        sum = add(sum, f, simd.pair_signs(&index));
     }
-    force
+    simd.transpose_point_pairs(sum)
 }
 
 #[inline(always)]

@@ -1,8 +1,9 @@
 //! The few 8-lane float operations the kernels need, portable and with AVX2.
 //!
 //! Kernels are written once, generic over [`Simd`], and instantiated for each implementation.
-//! Every operation is exact IEEE arithmetic per lane (no fused multiply-add, no approximate
-//! reciprocals), so both implementations produce bit-identical results.
+//! Every operation is exact IEEE arithmetic per lane (no approximate reciprocals, and the one
+//! fused multiply-add, [`Simd::add_signed`], multiplies by +1 or -1, an exact product), so both
+//! implementations produce bit-identical results.
 
 use crate::layout::LANES;
 
@@ -66,12 +67,37 @@ pub trait Simd: Copy {
     /// # Safety
     /// Every masked offset must be a multiple of 16 below the readable bytes at `points`, and
     /// no thread may write the points read during the call.
+    #[inline(always)]
     unsafe fn gather_points_at(
         self,
         points: *const Point,
         offsets: &[u32; LANES],
         mask: u32,
-    ) -> [Self::V; 3];
+    ) -> [Self::V; 3] {
+        // SAFETY: the caller's guarantee.
+        self.transpose_point_pairs(unsafe { self.point_pairs_at(points, offsets, mask) })
+    }
+    /// The points at byte offsets `offsets[lane] & mask` from `points`, as they lie, two to a
+    /// value: value `k` holds lanes `k` and `k + 4` (x, y, z and w of each), the pairs
+    /// [`point_slot`] stores side by side. Adding such values adds points.
+    ///
+    /// # Safety
+    /// As for [`Simd::gather_points_at`].
+    unsafe fn point_pairs_at(
+        self,
+        points: *const Point,
+        offsets: &[u32; LANES],
+        mask: u32,
+    ) -> [Self::V; 4];
+    /// x, y and z of the 8 points held two to a value (see [`Simd::point_pairs_at`]).
+    fn transpose_point_pairs(self, pairs: [Self::V; 4]) -> [Self::V; 3];
+    /// Per value of [`Simd::point_pairs_at`], -1 in the words of each point whose lane's
+    /// `sign` word has its top bit set, else +1.
+    fn pair_signs(self, sign: &[u32; LANES]) -> [Self::V; 4];
+    /// `sum + value * sign` for `sign` of +1 or -1: the product is exact, so this is exactly
+    /// `sum` plus `value` with its sign flipped there, rounded once (one fused multiply-add
+    /// with AVX2).
+    fn add_signed(self, sum: Self::V, value: Self::V, sign: Self::V) -> Self::V;
     /// Stores lane `k` of `x`, `y` and `z` as point `k` of `out` (at its [`point_slot`]), its
     /// fourth word zero.
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
@@ -116,17 +142,35 @@ impl Simd for Portable {
         std::array::from_fn(|lane| unsafe { *values.add((index[lane] & mask) as usize) })
     }
     #[inline(always)]
-    unsafe fn gather_points_at(
+    unsafe fn point_pairs_at(
         self,
         points: *const Point,
         offsets: &[u32; LANES],
         mask: u32,
-    ) -> [Block; 3] {
+    ) -> [Block; 4] {
         // SAFETY: the caller guarantees every masked offset is a point in bounds and not
         // written.
         let at =
             |lane: usize| unsafe { *points.add(((offsets[lane] & mask) / POINT_BYTES) as usize) };
-        std::array::from_fn(|axis| std::array::from_fn(|lane| at(lane)[axis]))
+        std::array::from_fn(|k| {
+            let (low, high) = (at(k), at(k + 4));
+            std::array::from_fn(|word| if word < 4 { low[word] } else { high[word - 4] })
+        })
+    }
+    #[inline(always)]
+    fn transpose_point_pairs(self, pairs: [Block; 4]) -> [Block; 3] {
+        std::array::from_fn(|axis| {
+            std::array::from_fn(|lane| pairs[lane % 4][4 * (lane / 4) + axis])
+        })
+    }
+    #[inline(always)]
+    fn pair_signs(self, sign: &[u32; LANES]) -> [Block; 4] {
+        let of = |lane: usize| if sign[lane] >> 31 == 1 { -1.0 } else { 1.0 };
+        std::array::from_fn(|k| std::array::from_fn(|word| of(k + 4 * (word / 4))))
+    }
+    #[inline(always)]
+    fn add_signed(self, sum: Block, value: Block, sign: Block) -> Block {
+        std::array::from_fn(|lane| sum[lane] + value[lane] * sign[lane])
     }
     #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
@@ -201,7 +245,8 @@ mod avx2 {
         pub fn detect() -> Option<Self> {
             static LOAD_BY_LANE: OnceLock<bool> = OnceLock::new();
             let found = std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("bmi1");
+                && std::arch::is_x86_feature_detected!("bmi1")
+                && std::arch::is_x86_feature_detected!("fma");
             found.then(|| Self {
                 load_by_lane: *LOAD_BY_LANE.get_or_init(is_amd),
             })
@@ -229,24 +274,17 @@ mod avx2 {
         vendor.as_flattened() == b"AuthenticAMD"
     }
 
-    /// The 8 points at `at(0..8)`, as x, y and z. One 16-byte load per lane, then a 4x4
-    /// transpose in each 128-bit half: 8 loads and 11 shuffles where three gathers by lane
-    /// take 24 loads and 21 inserts.
+    /// x, y and z of 8 points loaded two to a register (lanes k and k + 4, one 16-byte load
+    /// each): a 4x4 transpose in each 128-bit half. With the loads, 8 loads and 11 shuffles
+    /// where three gathers by lane take 24 loads and 21 inserts.
     ///
     /// # Safety
-    /// Each `at(lane)` must point at 16 readable bytes, and AVX2 must be enabled.
+    /// AVX2 must be enabled.
     #[inline(always)]
-    unsafe fn transpose_points(at: impl Fn(usize) -> *const Point) -> [__m256; 3] {
+    unsafe fn transpose_pairs([a0, a1, a2, a3]: [__m256; 4]) -> [__m256; 3] {
         // SAFETY: the caller's guarantee.
         unsafe {
-            let pair = |low: usize, high: usize| {
-                _mm256_insertf128_ps::<1>(
-                    _mm256_castps128_ps256(_mm_loadu_ps(at(low).cast())),
-                    _mm_loadu_ps(at(high).cast()),
-                )
-            };
             // Lanes (0, 4), (1, 5), (2, 6), (3, 7): each half transposes on its own.
-            let (a0, a1, a2, a3) = (pair(0, 4), pair(1, 5), pair(2, 6), pair(3, 7));
             let xy01 = _mm256_unpacklo_ps(a0, a1);
             let zw01 = _mm256_unpackhi_ps(a0, a1);
             let xy23 = _mm256_unpacklo_ps(a2, a3);
@@ -294,12 +332,12 @@ mod avx2 {
             }
         }
         #[inline(always)]
-        unsafe fn gather_points_at(
+        unsafe fn point_pairs_at(
             self,
             points: *const Point,
             offsets: &[u32; LANES],
             mask: u32,
-        ) -> [__m256; 3] {
+        ) -> [__m256; 4] {
             let bytes = points.cast::<u8>();
             // Two offsets per 8-byte load, half the loads: an irregular mesh's scatter step
             // took 0.27 instead of 0.29 ms (its gather, no change). x86-64 is little-endian,
@@ -324,7 +362,44 @@ mod avx2 {
                 unsafe { bytes.add(offset as usize).cast::<Point>() }
             };
             // SAFETY: every pointer `at` gives is a point in bounds (above).
-            unsafe { transpose_points(at) }
+            unsafe {
+                let pair = |low: usize, high: usize| {
+                    _mm256_insertf128_ps::<1>(
+                        _mm256_castps128_ps256(_mm_loadu_ps(at(low).cast())),
+                        _mm_loadu_ps(at(high).cast()),
+                    )
+                };
+                [pair(0, 4), pair(1, 5), pair(2, 6), pair(3, 7)]
+            }
+        }
+        #[inline(always)]
+        fn transpose_point_pairs(self, pairs: [__m256; 4]) -> [__m256; 3] {
+            unsafe { transpose_pairs(pairs) }
+        }
+        #[inline(always)]
+        fn pair_signs(self, sign: &[u32; LANES]) -> [__m256; 4] {
+            unsafe {
+                // +1 or -1 per lane: the sign bit kept, ored into 1.0's bits.
+                let ones = _mm256_or_si256(
+                    _mm256_and_si256(
+                        _mm256_loadu_si256(sign.as_ptr().cast()),
+                        _mm256_set1_epi32(i32::MIN),
+                    ),
+                    _mm256_set1_epi32(1.0f32.to_bits() as i32),
+                );
+                // Lane k in the low half and lane k + 4 in the high one, as the pairs hold
+                // their points.
+                [
+                    _mm256_castsi256_ps(_mm256_shuffle_epi32::<0x00>(ones)),
+                    _mm256_castsi256_ps(_mm256_shuffle_epi32::<0x55>(ones)),
+                    _mm256_castsi256_ps(_mm256_shuffle_epi32::<0xAA>(ones)),
+                    _mm256_castsi256_ps(_mm256_shuffle_epi32::<0xFF>(ones)),
+                ]
+            }
+        }
+        #[inline(always)]
+        fn add_signed(self, sum: __m256, value: __m256, sign: __m256) -> __m256 {
+            unsafe { _mm256_fmadd_ps(value, sign, sum) }
         }
         #[inline(always)]
         fn store_points(self, [x, y, z]: [__m256; 3], out: &mut [Point; LANES]) {
@@ -459,6 +534,48 @@ mod tests {
                 check(p, v);
             }
         }
+        // Points added as loaded, two to a value, with the flags' signs, then transposed: as
+        // the portable code, and as adding the gathered axes with their signs flipped.
+        let signed_sum = |simd: Avx2| {
+            let zero = [simd.splat(0.0); 4];
+            // SAFETY: every masked offset is a point below 40.
+            let f = unsafe { simd.point_pairs_at(points.as_ptr(), &offsets, !0x8000_0000) };
+            let signs = simd.pair_signs(&offsets);
+            let once: [_; 4] = std::array::from_fn(|k| simd.add_signed(zero[k], f[k], signs[k]));
+            let twice: [_; 4] = std::array::from_fn(|k| simd.add_signed(once[k], f[k], signs[k]));
+            simd.transpose_point_pairs(twice)
+        };
+        let portable = {
+            // SAFETY: as above.
+            let f = unsafe { Portable.point_pairs_at(points.as_ptr(), &offsets, !0x8000_0000) };
+            let signs = Portable.pair_signs(&offsets);
+            let zero = [0.0; LANES];
+            let once: [Block; 4] =
+                std::array::from_fn(|k| Portable.add_signed(zero, f[k], signs[k]));
+            let twice: [Block; 4] =
+                std::array::from_fn(|k| Portable.add_signed(once[k], f[k], signs[k]));
+            Portable.transpose_point_pairs(twice)
+        };
+        for (p, v) in portable.iter().zip(signed_sum(avx2)) {
+            check(*p, v);
+        }
+        // SAFETY: as above.
+        let axes = unsafe { Portable.gather_points_at(points.as_ptr(), &offsets, !0x8000_0000) };
+        for (p, axis) in portable.iter().zip(axes) {
+            let flipped = Portable.flip_sign(axis, &offsets);
+            let by_flips = Portable.add(Portable.add([0.0; LANES], flipped), flipped);
+            assert_eq!(p.map(f32::to_bits), by_flips.map(f32::to_bits));
+        }
+        // Rounding sums: fused or not, `sum + value * (+-1)` rounds once, as `sum +- value`.
+        let (sum, value): (Block, Block) = (
+            [1.0, 1e8, -3.5, 0.1, 1e-30, -0.0, 7.25, 16777216.0],
+            [1e-8, 3.0, 1.0e7, 0.2, -1e-30, 0.0, -7.25, 1.0],
+        );
+        let sign: Block = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0];
+        check(
+            Portable.add_signed(sum, value, sign),
+            avx2.add_signed(avx2.load(&sum), avx2.load(&value), avx2.load(&sign)),
+        );
         let plain = offsets.map(|o| o & !0x8000_0000);
         // SAFETY: every offset is a point below 40.
         let (portable, vector) = unsafe {

@@ -120,6 +120,22 @@ impl Points<'_> {
         unsafe { simd.gather_points_at(self.start, offsets, mask) }
     }
 
+    /// The points at byte offsets `offsets[lane] & mask`, two to a value (see
+    /// [`Simd::point_pairs_at`]).
+    ///
+    /// # Safety
+    /// Every masked offset must be a multiple of 16 below 16 times the view's length.
+    #[inline(always)]
+    pub unsafe fn point_pairs_at<S: Simd>(
+        &self,
+        simd: S,
+        offsets: &[u32; LANES],
+        mask: u32,
+    ) -> [S::V; 4] {
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { simd.point_pairs_at(self.start, offsets, mask) }
+    }
+
     /// `points[index[lane] & mask]` per lane, as x, y and z.
     ///
     /// # Safety
