@@ -670,9 +670,10 @@ fn accumulate_points_slice<S: Simd>(
     }
     for row in rows {
         let index = table.entry.row(row);
-        let offsets = index.map(|e| (point_slot(e & !B_END) * POINT_BYTES) | (e & B_END));
+        // Offsets without the flag, which they could reach on a mesh this large.
+        let offsets = index.map(|e| point_slot(e & !B_END) * POINT_BYTES);
         // SAFETY: as above, for slots this table holds.
-        let f = unsafe { points.point_pairs_at(simd, &offsets, !B_END) };
+        let f = unsafe { points.point_pairs_at(simd, &offsets, u32::MAX) };
         sum = add(sum, f, simd.pair_signs(&index));
     }
     simd.transpose_point_pairs(sum)
@@ -1202,6 +1203,90 @@ dispatch! {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The summing from point offsets and, where they would not fit (a mesh of some 2^27
+    /// spring slots), from the rows' entries: the same sums, bit for bit, with either
+    /// instruction set, and those of flipping each far end's force and adding it.
+    #[test]
+    fn irregular_summing_gives_the_same_sums_from_offsets_or_entries() {
+        let slots = 40 * LANES as u32;
+        let entry = |slice: usize, row: usize, lane: usize| {
+            let slot = ((slice * 7 + row * 13 + lane * 29) as u32 * 37) % slots;
+            slot | if (slice + row + lane).is_multiple_of(3) {
+                B_END
+            } else {
+                0
+            }
+        };
+        let widths = [3usize, 5, 1, 6];
+        let mut slice_rows = vec![0u32];
+        let mut rows = Vec::new();
+        for (slice, width) in widths.iter().enumerate() {
+            for row in 0..*width {
+                rows.push(std::array::from_fn(|lane| entry(slice, row, lane)));
+            }
+            slice_rows.push(rows.len() as u32);
+        }
+        let forces: Vec<[Point; LANES]> = (0..40)
+            .map(|r| {
+                std::array::from_fn(|k| {
+                    let v = (r * LANES + k) as f32;
+                    [0.1 * v + 1e-3, -1.7 * v, 3.0e5 / (v + 1.0), 0.0]
+                })
+            })
+            .collect();
+        let view = ForcesView::Points(Points::new(forces.as_flattened()));
+        let table = |form| IncidenceTable {
+            slices: Slices {
+                slice_rows: slice_rows.clone(),
+            },
+            entry: IndexRows::new(rows.clone(), !B_END, slots as usize, form),
+        };
+        let (offsets, entries) = (table(RowForm::Points), table(RowForm::Runs));
+        assert!(offsets.entry.point_offsets().is_some() && entries.entry.point_offsets().is_none());
+        let sums = |table: &IncidenceTable, isa| {
+            let mut out = vec![[0.0; LANES]; 3 * widths.len()];
+            let (x, rest) = out.split_at_mut(widths.len());
+            let (y, z) = rest.split_at_mut(widths.len());
+            let chunk = ForceChunk {
+                first_slice: 0,
+                out: [x, y, z],
+            };
+            accumulate_forces(isa, table, view, chunk);
+            out
+        };
+        let expected = sums(&offsets, InstructionSet::Portable);
+        for isa in [InstructionSet::Best, InstructionSet::Portable] {
+            for table in [&offsets, &entries] {
+                let got = sums(table, isa);
+                let bits =
+                    |v: &Vec<Block>| v.iter().flatten().map(|f| f.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&got), bits(&expected), "{isa:?}");
+            }
+        }
+        for (slice, _) in widths.iter().enumerate() {
+            for lane in 0..LANES {
+                let mut sum = [0.0f32; 3];
+                for row in offsets.slices.rows(slice) {
+                    let e = rows[row][lane];
+                    let slot = (e & !B_END) as usize;
+                    let f = forces[slot / LANES][point_slot((slot % LANES) as u32) as usize];
+                    for axis in 0..3 {
+                        let v = if e & B_END != 0 { -f[axis] } else { f[axis] };
+                        sum[axis] += v;
+                    }
+                }
+                for axis in 0..3 {
+                    let got = expected[axis * widths.len() + slice][lane];
+                    assert_eq!(
+                        got.to_bits(),
+                        sum[axis].to_bits(),
+                        "slice {slice} lane {lane}"
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn value_rows_give_back_every_row_compacted_or_not() {
