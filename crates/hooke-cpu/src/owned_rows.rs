@@ -11,6 +11,8 @@
 //! eight where it can), and [`rows`] lays out each block's slices' full rows, then the
 //! springs left over, ordered by first end.
 
+use hooke_core::Adjacency;
+
 use crate::layout::LANES;
 use crate::tables::{SPRING_BLOCK, Slot};
 
@@ -21,45 +23,19 @@ const SEARCH_LIMIT: usize = 256;
 /// The slots of `ends`' springs (each `[owner, other]`, re-owned in place) in rows of
 /// slices' own springs, block by block; `vertices` is the padded vertex count.
 pub(crate) fn order(ends: &mut [[u32; 2]], vertices: usize) -> Vec<Slot> {
-    balance(ends, vertices);
-    rows(ends, vertices)
+    // Who owns a spring changes below, which vertices it joins does not.
+    let adjacency = Adjacency::from_springs(vertices, ends);
+    balance(ends, &adjacency);
+    rows(ends, &adjacency)
 }
 
 fn block_of(v: u32) -> u32 {
     v / SPRING_BLOCK
 }
 
-/// Per vertex, the springs at it (either end) whose ends share a block, as ranges of one list.
-struct FreeSprings {
-    start: Vec<u32>,
-    springs: Vec<u32>,
-}
-
-impl FreeSprings {
-    fn new(ends: &[[u32; 2]], vertices: usize) -> Self {
-        let mut start = vec![0u32; vertices + 1];
-        let free = |e: &[u32; 2]| block_of(e[0]) == block_of(e[1]);
-        for e in ends.iter().filter(|e| free(e)) {
-            start[e[0] as usize + 1] += 1;
-            start[e[1] as usize + 1] += 1;
-        }
-        for v in 0..vertices {
-            start[v + 1] += start[v];
-        }
-        let mut fill = start.clone();
-        let mut springs = vec![0u32; start[vertices] as usize];
-        for (s, e) in ends.iter().enumerate().filter(|(_, e)| free(e)) {
-            for v in *e {
-                springs[fill[v as usize] as usize] = s as u32;
-                fill[v as usize] += 1;
-            }
-        }
-        Self { start, springs }
-    }
-
-    fn at(&self, v: u32) -> &[u32] {
-        &self.springs[self.start[v as usize] as usize..self.start[v as usize + 1] as usize]
-    }
+/// Whether a spring's ends share a block, so that either may own it.
+fn is_free([a, b]: [u32; 2]) -> bool {
+    block_of(a) == block_of(b)
 }
 
 /// Re-owns springs within blocks so that each slice's vertices own at least `m` springs
@@ -67,20 +43,18 @@ impl FreeSprings {
 /// slice's lowest, then one more where every vertex of the slice finds one. A vertex short of
 /// its target takes a spring from a neighbour with one to spare, or along a path of owners
 /// (each passes one on), so nobody falls below their own target.
-fn balance(ends: &mut [[u32; 2]], vertices: usize) {
-    let free = FreeSprings::new(ends, vertices);
-    let mut valence = vec![0u32; vertices];
+fn balance(ends: &mut [[u32; 2]], adjacency: &Adjacency) {
+    let vertices = adjacency.offsets.len() - 1;
+    let springs_at = |v: usize| adjacency.range(v).map(|e| adjacency.springs[e] as usize);
     let mut owned = vec![0u32; vertices];
-    let mut fixed = vec![0u32; vertices];
     for e in ends.iter() {
-        valence[e[0] as usize] += 1;
-        valence[e[1] as usize] += 1;
         owned[e[0] as usize] += 1;
-        if block_of(e[0]) != block_of(e[1]) {
-            fixed[e[0] as usize] += 1;
-        }
     }
-    let most = |v: usize| (fixed[v] + free.at(v as u32).len() as u32).min(valence[v] / 2);
+    // What a vertex may own: the springs within its block, and those across blocks it owns.
+    let most = |v: usize| {
+        let may_own = springs_at(v).filter(|&s| is_free(ends[s]) || ends[s][0] as usize == v);
+        (may_own.count() as u32).min(adjacency.valence(v) / 2)
+    };
     let mut target = vec![0u32; vertices];
     for (s, lanes) in target.chunks_mut(LANES).enumerate() {
         let m = (s * LANES..(s + 1) * LANES).map(most).min().unwrap_or(0);
@@ -89,7 +63,7 @@ fn balance(ends: &mut [[u32; 2]], vertices: usize) {
     let mut search = Search::new(vertices);
     for v in 0..vertices as u32 {
         while owned[v as usize] < target[v as usize] {
-            if !search.take_one(v, ends, &free, &mut owned, &target) {
+            if !search.take_one(v, ends, adjacency, &mut owned, &target) {
                 break;
             }
         }
@@ -97,13 +71,13 @@ fn balance(ends: &mut [[u32; 2]], vertices: usize) {
     // One more each where a whole slice finds it.
     for s in 0..vertices / LANES {
         let lanes = s * LANES..(s + 1) * LANES;
-        if lanes.clone().any(|v| valence[v] == 0) {
+        if lanes.clone().any(|v| adjacency.valence(v) == 0) {
             continue;
         }
         let raised = target[s * LANES] + 1;
         target[lanes.clone()].fill(raised);
         let all = lanes.clone().all(|v| {
-            owned[v] >= raised || search.take_one(v as u32, ends, &free, &mut owned, &target)
+            owned[v] >= raised || search.take_one(v as u32, ends, adjacency, &mut owned, &target)
         });
         if !all {
             target[lanes].fill(raised - 1);
@@ -137,7 +111,7 @@ impl Search {
         &mut self,
         v: u32,
         ends: &mut [[u32; 2]],
-        free: &FreeSprings,
+        adjacency: &Adjacency,
         owned: &mut [u32],
         target: &[u32],
     ) -> bool {
@@ -149,9 +123,10 @@ impl Search {
         while head < self.queue.len() {
             let u = self.queue[head];
             head += 1;
-            for &s in free.at(u) {
+            for &s in &adjacency.springs[adjacency.range(u as usize)] {
                 let [owner, other] = ends[s as usize];
-                if other != u || self.seen[owner as usize] == self.epoch {
+                if other != u || !is_free([owner, other]) || self.seen[owner as usize] == self.epoch
+                {
                     continue;
                 }
                 self.seen[owner as usize] = self.epoch;
@@ -180,25 +155,19 @@ impl Search {
 /// Block by block: for each slice, as many rows as its vertices all own springs (row `k`
 /// holding each vertex's `k`-th, by far end), then the block's springs left over by first
 /// end and far end, padded to a whole row so that the next block's rows start whole.
-fn rows(ends: &[[u32; 2]], vertices: usize) -> Vec<Slot> {
-    let mut start = vec![0u32; vertices + 1];
-    for e in ends {
-        start[e[0] as usize + 1] += 1;
-    }
+fn rows(ends: &[[u32; 2]], adjacency: &Adjacency) -> Vec<Slot> {
+    let vertices = adjacency.offsets.len() - 1;
+    // Each vertex's own springs, by far end.
+    let mut start = vec![0usize];
+    let mut owned = Vec::with_capacity(ends.len());
     for v in 0..vertices {
-        start[v + 1] += start[v];
+        let first = owned.len();
+        let springs = adjacency.springs[adjacency.range(v)].iter();
+        owned.extend(springs.filter(|&&s| ends[s as usize][0] as usize == v));
+        owned[first..].sort_by_key(|&s| ends[s as usize][1]);
+        start.push(owned.len());
     }
-    let mut fill = start.clone();
-    let mut owned = vec![0u32; ends.len()];
-    for (s, e) in ends.iter().enumerate() {
-        owned[fill[e[0] as usize] as usize] = s as u32;
-        fill[e[0] as usize] += 1;
-    }
-    for v in 0..vertices {
-        let range = start[v] as usize..start[v + 1] as usize;
-        owned[range].sort_by_key(|&s| ends[s as usize][1]);
-    }
-    let springs_of = |v: usize| &owned[start[v] as usize..start[v + 1] as usize];
+    let springs_of = |v: usize| &owned[start[v]..start[v + 1]];
     let mut slots = Vec::with_capacity(ends.len() + ends.len() / 8);
     let block = SPRING_BLOCK as usize;
     for first in (0..vertices).step_by(block) {
