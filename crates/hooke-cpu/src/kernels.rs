@@ -25,7 +25,7 @@ use crate::layout::{LANES, Slices};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
 pub use crate::simd::{Block, Point};
-use crate::simd::{POINT_BYTES, Portable, Simd, point_at_slot, point_slot};
+use crate::simd::{POINT_BYTES, Portable, Simd, point_at_slot, point_offset};
 pub use crate::view::Positions;
 use crate::view::{Floats, Points};
 
@@ -142,7 +142,7 @@ impl IndexRows {
             RowForm::Points => true,
         };
         if points && offsets_fit {
-            let offset = |entry: u32| (point_slot(entry & mask) * POINT_BYTES) | (entry & !mask);
+            let offset = |entry: u32| point_offset(entry, mask) | (entry & !mask);
             let first = |(r, &run): (&[u32; LANES], &bool)| if run { r[0] & mask } else { 0 };
             if form == RowForm::Points {
                 // Read by the force pass (`IndexRows::runs`).
@@ -671,7 +671,7 @@ fn accumulate_points_slice<S: Simd>(
     for row in rows {
         let index = table.entry.row(row);
         // Offsets without the flag, which they could reach on a mesh this large.
-        let offsets = index.map(|e| point_slot(e & !B_END) * POINT_BYTES);
+        let offsets = index.map(|e| point_offset(e, !B_END));
         // SAFETY: as above, for slots this table holds.
         let f = unsafe { points.point_pairs_at(simd, &offsets, u32::MAX) };
         sum = add(sum, f, simd.pair_signs(&index));
@@ -1203,6 +1203,7 @@ dispatch! {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::point_slot;
 
     /// The summing from point offsets and, where they would not fit (a mesh of some 2^27
     /// spring slots), from the rows' entries: the same sums, bit for bit, with either

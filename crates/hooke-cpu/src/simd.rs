@@ -31,6 +31,13 @@ pub const fn point_at_slot(slot: u32) -> u32 {
 /// Bytes of a [`Point`]: a slot times this is its byte offset.
 pub const POINT_BYTES: u32 = std::mem::size_of::<Point>() as u32;
 
+/// The byte offset of point `entry & mask` (at its [`point_slot`]), what
+/// [`Simd::gather_points_at`] reads.
+#[inline(always)]
+pub const fn point_offset(entry: u32, mask: u32) -> u32 {
+    point_slot(entry & mask) * POINT_BYTES
+}
+
 /// 8-lane float operations. A value of the implementing type is proof the CPU can run them.
 pub trait Simd: Copy {
     type V: Copy;
@@ -56,7 +63,7 @@ pub trait Simd: Copy {
         index: &[u32; LANES],
         mask: u32,
     ) -> [Self::V; 3] {
-        let offsets = index.map(|entry| point_slot(entry & mask) * POINT_BYTES);
+        let offsets = index.map(|entry| point_offset(entry, mask));
         // SAFETY: the caller guarantees every masked index is a point in bounds, and a slot
         // is in the same group of 8 as its index.
         unsafe { self.gather_points_at(points, &offsets, u32::MAX) }

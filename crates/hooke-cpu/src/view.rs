@@ -78,8 +78,8 @@ impl<'a> Floats<'a> {
     #[inline(always)]
     pub fn run(&self, first: usize) -> &'a Block {
         assert!(first + LANES <= self.len, "run out of bounds");
-        // SAFETY: in bounds (checked), readable and not written while the view lives.
-        unsafe { &*self.start.add(first).cast::<Block>() }
+        // SAFETY: in bounds (checked).
+        unsafe { self.run_unchecked(first) }
     }
 
     /// [`Floats::run`] without the bounds check.
@@ -116,8 +116,8 @@ impl Points<'_> {
         offsets: &[u32; LANES],
         mask: u32,
     ) -> [S::V; 3] {
-        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
-        unsafe { simd.gather_points_at(self.start, offsets, mask) }
+        // SAFETY: the caller's guarantee.
+        simd.transpose_point_pairs(unsafe { self.point_pairs_at(simd, offsets, mask) })
     }
 
     /// The points at byte offsets `offsets[lane] & mask`, two to a value (see
