@@ -307,7 +307,8 @@ impl Blocks {
             },
             // SAFETY: as for the rows.
             slices: &|j: usize, blocks: Range<usize>| unsafe {
-                buffers.step(j, self.slices(blocks), &kernel)
+                // Every step's positions as axes: the accumulation reads its own from them.
+                buffers.step(j, self.slices(blocks), true, &kernel)
             },
         };
         f(&work)
@@ -629,6 +630,7 @@ impl Outputs {
         VertexChunk {
             first_slice: start,
             next: self.next.map(part),
+            axes: true,
             delta: self.delta.map(part),
             // SAFETY: as the axes.
             points: self

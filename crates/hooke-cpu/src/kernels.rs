@@ -553,18 +553,15 @@ fn spring_force_rows<S: Simd>(
     [simd.mul(k, dx), simd.mul(k, dy), simd.mul(k, dz)]
 }
 
+/// The spring forces on slice `slice`, whose positions are `own`.
 #[inline(always)]
 fn gather_slice<S: Simd, const POINTS: bool>(
     simd: S,
     table: &GatherTable,
     positions: Positions<'_>,
     slice: usize,
+    own: [S::V; 3],
 ) -> [S::V; 3] {
-    let own = [
-        simd.load(positions.block(0, slice)),
-        simd.load(positions.block(1, slice)),
-        simd.load(positions.block(2, slice)),
-    ];
     let mut force = [simd.splat(0.0); 3];
     let rows = table.slices.rows(slice);
     if POINTS
@@ -704,17 +701,19 @@ struct SliceOut<'a> {
     delta: [&'a mut Block; 3],
 }
 
-/// Integrates one slice: writes `x(t+dt)` to `out.next` (and to `points` if given) and
-/// updates `out.delta` in place. Returns a probe that is NaN in lanes whose new position is
-/// not finite.
+/// Integrates one slice at `own`: writes `x(t+dt)` to `out.next` (unless `!axes`) and to
+/// `points` if given, and updates `out.delta` in place. Returns a probe that is NaN in lanes
+/// whose new position is not finite.
+#[allow(clippy::too_many_arguments)] // one slice's inputs and outputs, inlined
 #[inline(always)]
 fn integrate_slice<S: Simd>(
     simd: S,
     integrator: &Integrator,
-    current: Positions<'_>,
     slice: usize,
+    own: [S::V; 3],
     force: [S::V; 3],
     out: SliceOut<'_>,
+    axes: bool,
     points: Option<&mut [Point; LANES]>,
 ) -> S::V {
     let force_scale = simd.load(&integrator.scales.axis(0)[slice]);
@@ -727,7 +726,7 @@ fn integrate_slice<S: Simd>(
     // arrays' by-value iterators kept their state on the stack.
     for axis in 0..3 {
         let (next, delta) = (&mut *next[axis], &mut *delta[axis]);
-        let x = simd.load(current.block(axis, slice));
+        let x = own[axis];
         let moved = simd.add(
             simd.add(
                 simd.mul(simd.load(delta), velocity_scale),
@@ -739,7 +738,9 @@ fn integrate_slice<S: Simd>(
         let new_delta = simd.select_positive(force_scale, moved, zero);
         let new = simd.select_positive(force_scale, simd.add(x, new_delta), x);
         simd.store(new_delta, delta);
-        simd.store(new, next);
+        if axes {
+            simd.store(new, next);
+        }
         news[axis] = new;
         probe = simd.add(probe, simd.mul(new, zero));
     }
@@ -783,6 +784,9 @@ fn is_finite_probe<S: Simd>(simd: S, probe: S::V) -> bool {
 pub struct VertexChunk<'a> {
     pub first_slice: usize,
     pub next: [&'a mut [Block]; 3],
+    /// Whether to write `next` (else only the points, which must then be given): a sweep's
+    /// steps before its last, whose positions only the next step's force pass reads.
+    pub axes: bool,
     pub delta: [&'a mut [Block]; 3],
     pub points: Option<&'a mut [[Point; LANES]]>,
 }
@@ -798,7 +802,11 @@ pub struct ForceChunk<'a> {
 /// method rather than closures: a closure called from two loops would not inline into the AVX2
 /// functions, and its intrinsics would become calls.
 trait SliceForces {
-    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3];
+    /// Whether [`SliceForces::of`] reads `own`; others get zeros, and the vertex pass loads a
+    /// slice's positions after its force (fewer values held across the force's loop).
+    const READS_OWN: bool = false;
+    /// The net spring force on slice `slice`, whose positions are `own`.
+    fn of<S: Simd>(&self, simd: S, slice: usize, own: [S::V; 3]) -> [S::V; 3];
 }
 
 /// Gather: each slice sums its springs; with `POINTS`, gathered rows read the points.
@@ -808,9 +816,10 @@ struct Gathered<'a, const POINTS: bool> {
 }
 
 impl<const POINTS: bool> SliceForces for Gathered<'_, POINTS> {
+    const READS_OWN: bool = true;
     #[inline(always)]
-    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
-        gather_slice::<S, POINTS>(simd, self.table, self.current, slice)
+    fn of<S: Simd>(&self, simd: S, slice: usize, own: [S::V; 3]) -> [S::V; 3] {
+        gather_slice::<S, POINTS>(simd, self.table, self.current, slice, own)
     }
 }
 
@@ -822,7 +831,7 @@ struct Accumulated<'a> {
 
 impl SliceForces for Accumulated<'_> {
     #[inline(always)]
-    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+    fn of<S: Simd>(&self, simd: S, slice: usize, _: [S::V; 3]) -> [S::V; 3] {
         accumulate_slice(simd, self.table, self.spring_forces, slice)
     }
 }
@@ -835,7 +844,7 @@ struct AccumulatedPoints<'a> {
 
 impl SliceForces for AccumulatedPoints<'_> {
     #[inline(always)]
-    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+    fn of<S: Simd>(&self, simd: S, slice: usize, _: [S::V; 3]) -> [S::V; 3] {
         accumulate_points_slice(simd, self.table, self.spring_forces, slice)
     }
 }
@@ -845,7 +854,7 @@ struct Summed<'a>(&'a Soa);
 
 impl SliceForces for Summed<'_> {
     #[inline(always)]
-    fn of<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+    fn of<S: Simd>(&self, simd: S, slice: usize, _: [S::V; 3]) -> [S::V; 3] {
         let [fx, fy, fz] = self.0.axes();
         [
             simd.load(&fx[slice]),
@@ -855,10 +864,47 @@ impl SliceForces for Summed<'_> {
     }
 }
 
-/// The vertex pass every step ends with: each slice's net force (from `forces`, plus the
-/// extra forces), then Verlet. False if a new position in the chunk is not finite.
+/// The positions of slice `slice`: from `current`'s points with `POINTS` where it has them,
+/// else from its axes.
 #[inline(always)]
-fn integrate_chunk<S: Simd>(
+fn own_positions<S: Simd, const POINTS: bool>(
+    simd: S,
+    current: Positions<'_>,
+    slice: usize,
+) -> [S::V; 3] {
+    match current.points {
+        Some(points) if POINTS => simd.load_points(points.slice(slice)),
+        _ => [
+            simd.load(current.block(0, slice)),
+            simd.load(current.block(1, slice)),
+            simd.load(current.block(2, slice)),
+        ],
+    }
+}
+
+/// A slice's positions (see [`own_positions`]) and net spring force, in the order that
+/// `forces` needs them.
+#[inline(always)]
+fn own_and_force<S: Simd, const POINTS: bool, F: SliceForces>(
+    simd: S,
+    current: Positions<'_>,
+    slice: usize,
+    forces: &F,
+) -> ([S::V; 3], [S::V; 3]) {
+    if F::READS_OWN {
+        let own = own_positions::<S, POINTS>(simd, current, slice);
+        (own, forces.of(simd, slice, own))
+    } else {
+        let force = forces.of(simd, slice, [simd.splat(0.0); 3]);
+        (own_positions::<S, POINTS>(simd, current, slice), force)
+    }
+}
+
+/// The vertex pass every step ends with: each slice's net force (from `forces`, plus the
+/// extra forces), then Verlet, each slice's positions read from `current`'s points with
+/// `OWN_POINTS`, else from its axes. False if a new position in the chunk is not finite.
+#[inline(always)]
+fn integrate_chunk<S: Simd, const OWN_POINTS: bool>(
     simd: S,
     integrator: &Integrator,
     current: Positions<'_>,
@@ -867,20 +913,25 @@ fn integrate_chunk<S: Simd>(
     forces: &impl SliceForces,
 ) -> bool {
     let mut probe = simd.splat(0.0);
+    let axes = chunk.axes;
     let outputs = slice_outputs(chunk.first_slice, chunk.next, chunk.delta);
     // Two copies of the loop, one that writes no points: the structured meshes' steps.
     match chunk.points {
         None => {
+            assert!(axes, "a vertex pass writes its positions somewhere");
             for (slice, out) in outputs {
-                let force = add_extra(simd, forces.of(simd, slice), extra, slice);
-                let p = integrate_slice(simd, integrator, current, slice, force, out, None);
+                let (own, force) = own_and_force::<S, OWN_POINTS, _>(simd, current, slice, forces);
+                let force = add_extra(simd, force, extra, slice);
+                let p = integrate_slice(simd, integrator, slice, own, force, out, true, None);
                 probe = simd.add(probe, p);
             }
         }
         Some(points) => {
             for ((slice, out), points) in outputs.zip(points) {
-                let force = add_extra(simd, forces.of(simd, slice), extra, slice);
-                let p = integrate_slice(simd, integrator, current, slice, force, out, Some(points));
+                let (own, force) = own_and_force::<S, OWN_POINTS, _>(simd, current, slice, forces);
+                let force = add_extra(simd, force, extra, slice);
+                let p =
+                    integrate_slice(simd, integrator, slice, own, force, out, axes, Some(points));
                 probe = simd.add(probe, p);
             }
         }
@@ -900,10 +951,10 @@ fn gather_and_integrate_with<S: Simd>(
     // Two copies of the loop, one that never looks at points: the structured meshes' rows.
     if current.points.is_some() {
         let forces = Gathered::<true> { table, current };
-        integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+        integrate_chunk::<S, true>(simd, integrator, current, extra, chunk, &forces)
     } else {
         let forces = Gathered::<false> { table, current };
-        integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+        integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
     }
 }
 
@@ -936,14 +987,14 @@ fn accumulate_and_integrate_with<S: Simd>(
                 table,
                 spring_forces,
             };
-            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+            integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
         }
         ForcesView::Points(spring_forces) => {
             let forces = AccumulatedPoints {
                 table,
                 spring_forces,
             };
-            integrate_chunk(simd, integrator, current, extra, chunk, &forces)
+            integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
         }
     }
 }
@@ -1105,7 +1156,13 @@ dispatch! {
 }
 
 #[inline(always)]
-fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, forces: &impl SliceForces) {
+/// Stores each slice's net spring force; `current`: the positions, for forces that read them.
+fn store_forces<S: Simd>(
+    simd: S,
+    chunk: ForceChunk<'_>,
+    forces: &impl SliceForces,
+    current: Option<Positions<'_>>,
+) {
     let [ox, oy, oz] = chunk.out;
     for (k, ((bx, by), bz)) in ox
         .iter_mut()
@@ -1113,7 +1170,12 @@ fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, forces: &impl SliceForc
         .zip(oz.iter_mut())
         .enumerate()
     {
-        let [fx, fy, fz] = forces.of(simd, chunk.first_slice + k);
+        let slice = chunk.first_slice + k;
+        let own = match current {
+            Some(current) => own_positions::<S, false>(simd, current, slice),
+            None => [simd.splat(0.0); 3],
+        };
+        let [fx, fy, fz] = forces.of(simd, slice, own);
         simd.store(fx, bx);
         simd.store(fy, by);
         simd.store(fz, bz);
@@ -1130,8 +1192,18 @@ fn gather_forces_with<S: Simd>(
 ) {
     let current = Positions::new(current, points);
     match points {
-        None => store_forces(simd, chunk, &Gathered::<false> { table, current }),
-        Some(_) => store_forces(simd, chunk, &Gathered::<true> { table, current }),
+        None => store_forces(
+            simd,
+            chunk,
+            &Gathered::<false> { table, current },
+            Some(current),
+        ),
+        Some(_) => store_forces(
+            simd,
+            chunk,
+            &Gathered::<true> { table, current },
+            Some(current),
+        ),
     }
 }
 
@@ -1158,14 +1230,14 @@ fn accumulate_forces_with<S: Simd>(
                 table,
                 spring_forces,
             };
-            store_forces(simd, chunk, &forces);
+            store_forces(simd, chunk, &forces, None);
         }
         ForcesView::Points(spring_forces) => {
             let forces = AccumulatedPoints {
                 table,
                 spring_forces,
             };
-            store_forces(simd, chunk, &forces);
+            store_forces(simd, chunk, &forces, None);
         }
     }
 }
@@ -1186,7 +1258,7 @@ fn integrate_with<S: Simd>(
     chunk: VertexChunk<'_>,
 ) -> bool {
     let current = Positions::new(current, None);
-    integrate_chunk(simd, integrator, current, extra, chunk, &Summed(forces))
+    integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &Summed(forces))
 }
 
 dispatch! {

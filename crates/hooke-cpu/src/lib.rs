@@ -675,6 +675,22 @@ impl CpuSolver {
         true
     }
 
+    /// The positions from the points, where a sweep stopped before its last step (see
+    /// `sweep::Buffers::step`).
+    fn axes_from_points(&mut self) {
+        let [xs, ys, zs] = self.current.axes_mut();
+        self.points
+            .par_iter()
+            .zip(
+                xs.par_iter_mut()
+                    .zip(ys.par_iter_mut())
+                    .zip(zs.par_iter_mut()),
+            )
+            .for_each(|(points, ((x, y), z))| {
+                [*x, *y, *z] = Portable.load_points(points);
+            });
+    }
+
     /// Whether the integration should write the next positions as points: the force pass reads
     /// them, and nothing will move a vertex after the integration.
     fn writes_points(&self) -> bool {
@@ -807,6 +823,7 @@ fn for_each_vertex_chunk(
             kernel(VertexChunk {
                 first_slice: task * SLICES_PER_TASK,
                 next: [nx, ny, nz],
+                axes: true,
                 delta: [dx, dy, dz],
                 points,
             })

@@ -108,6 +108,9 @@ pub trait Simd: Copy {
     /// Stores lane `k` of `x`, `y` and `z` as point `k` of `out` (at its [`point_slot`]), its
     /// fourth word zero.
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
+    /// Lane `k` of x, y and z from point `k` of `points` (at its [`point_slot`]): what
+    /// [`Simd::store_points`] stored.
+    fn load_points(self, points: &[Point; LANES]) -> [Self::V; 3];
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
     fn sub(self, a: Self::V, b: Self::V) -> Self::V;
     fn mul(self, a: Self::V, b: Self::V) -> Self::V;
@@ -184,6 +187,12 @@ impl Simd for Portable {
         for lane in 0..LANES {
             out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], 0.0];
         }
+    }
+    #[inline(always)]
+    fn load_points(self, points: &[Point; LANES]) -> [Block; 3] {
+        std::array::from_fn(|axis| {
+            std::array::from_fn(|lane| points[point_slot(lane as u32) as usize][axis])
+        })
     }
     #[inline(always)]
     fn add(self, a: Block, b: Block) -> Block {
@@ -430,6 +439,19 @@ mod avx2 {
             }
         }
         #[inline(always)]
+        fn load_points(self, points: &[Point; LANES]) -> [__m256; 3] {
+            unsafe {
+                // Stored side by side as points (k, k + 4): the pairs `transpose_pairs` takes.
+                let base = points.as_ptr().cast::<f32>();
+                transpose_pairs([
+                    _mm256_loadu_ps(base),
+                    _mm256_loadu_ps(base.add(8)),
+                    _mm256_loadu_ps(base.add(16)),
+                    _mm256_loadu_ps(base.add(24)),
+                ])
+            }
+        }
+        #[inline(always)]
         fn add(self, a: __m256, b: __m256) -> __m256 {
             unsafe { _mm256_add_ps(a, b) }
         }
@@ -604,6 +626,16 @@ mod tests {
             let source = points[point_slot(index[lane] & !0x8000_0000) as usize];
             let point = from_portable[point_slot(lane as u32) as usize];
             assert_eq!(point, [source[0], source[1], source[2], 0.0]);
+        }
+        // And load back as they were gathered.
+        let loaded = Portable.load_points(&from_portable);
+        for ((p, v), l) in portable
+            .iter()
+            .zip(avx2.load_points(&from_vector))
+            .zip(loaded)
+        {
+            check(*p, v);
+            assert_eq!(p.map(f32::to_bits), l.map(f32::to_bits));
         }
         for index in 0..64 {
             assert_eq!(point_at_slot(point_slot(index)), index);

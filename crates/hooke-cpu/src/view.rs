@@ -73,6 +73,16 @@ impl<'a, T> Run<'a, T> {
     }
 }
 
+impl<'a> Points<'a> {
+    /// The 8 points of slice `slice`.
+    #[inline(always)]
+    pub fn slice(&self, slice: usize) -> &'a [Point; LANES] {
+        assert!((slice + 1) * LANES <= self.len, "slice out of bounds");
+        // SAFETY: in bounds (checked); not written while the view lives.
+        unsafe { &*self.start.add(slice * LANES).cast::<[Point; LANES]>() }
+    }
+}
+
 impl<'a> Floats<'a> {
     /// The 8 floats from `first` on.
     #[inline(always)]
