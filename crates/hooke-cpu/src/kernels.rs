@@ -1155,8 +1155,8 @@ dispatch! {
     ) -> () => spring_forces_with
 }
 
-#[inline(always)]
 /// Stores each slice's net spring force; `current`: the positions, for forces that read them.
+#[inline(always)]
 fn store_forces<S: Simd>(
     simd: S,
     chunk: ForceChunk<'_>,
