@@ -73,16 +73,6 @@ impl<'a, T> Run<'a, T> {
     }
 }
 
-impl<'a> Points<'a> {
-    /// The 8 points of slice `slice`.
-    #[inline(always)]
-    pub fn slice(&self, slice: usize) -> &'a [Point; LANES] {
-        assert!((slice + 1) * LANES <= self.len, "slice out of bounds");
-        // SAFETY: in bounds (checked); not written while the view lives.
-        unsafe { &*self.start.add(slice * LANES).cast::<[Point; LANES]>() }
-    }
-}
-
 impl<'a> Floats<'a> {
     /// The 8 floats from `first` on.
     #[inline(always)]
@@ -114,7 +104,15 @@ impl<'a> Floats<'a> {
     }
 }
 
-impl Points<'_> {
+impl<'a> Points<'a> {
+    /// The 8 points of slice `slice`.
+    #[inline(always)]
+    pub fn slice(&self, slice: usize) -> &'a [Point; LANES] {
+        assert!((slice + 1) * LANES <= self.len, "slice out of bounds");
+        // SAFETY: in bounds (checked); not written while the view lives.
+        unsafe { &*self.start.add(slice * LANES).cast::<[Point; LANES]>() }
+    }
+
     /// The points at byte offsets `offsets[lane] & mask`, as x, y and z.
     ///
     /// # Safety
@@ -126,8 +124,8 @@ impl Points<'_> {
         offsets: &[u32; LANES],
         mask: u32,
     ) -> [S::V; 3] {
-        // SAFETY: the caller's guarantee.
-        simd.transpose_point_pairs(unsafe { self.point_pairs_at(simd, offsets, mask) })
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { simd.gather_points_at(self.start, offsets, mask) }
     }
 
     /// The points at byte offsets `offsets[lane] & mask`, two to a value (see
