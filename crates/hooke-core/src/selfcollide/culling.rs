@@ -701,14 +701,9 @@ impl Culling {
             .references
             .iter()
             .map(|references| {
-                let reference_scale = scale_of(references);
                 // References that are not finite are renewed at the first measurement, which
                 // takes their box then.
-                let (reference_low, reference_high) = if reference_scale.is_finite() {
-                    corners(references)
-                } else {
-                    (Vec3::ZERO, Vec3::ZERO)
-                };
+                let (reference_scale, (reference_low, reference_high)) = scale_and_box(references);
                 Patch {
                     centre: Vec3::ZERO,
                     spread: 0.0,
@@ -1287,11 +1282,12 @@ fn measure_patch_with(
             }
         }
         // Old references that were not finite told nothing of the points: they are now.
-        patch.reference_scale = scale_of(references);
+        let reference_box;
+        (patch.reference_scale, reference_box) = scale_and_box(references);
         if !patch.reference_scale.is_finite() {
             return None;
         }
-        (patch.reference_low, patch.reference_high) = corners(references);
+        (patch.reference_low, patch.reference_high) = reference_box;
         (patch.low, patch.high) = (patch.reference_low, patch.reference_high);
         patch.shift += centre.as_dvec3();
         patch.renewed += f64::from(spread) * (1.0 + 1e-5) + f64::from(centre.length()) * 1e-6;
@@ -1315,13 +1311,14 @@ fn corners(frame: &Frame) -> (Vec3, Vec3) {
     (corner(0), corner(1))
 }
 
-/// A frame's largest coordinate, m, or infinity if one is not finite.
-fn scale_of(frame: &Frame) -> f32 {
+/// A frame's largest coordinate, m, and its box; infinity and an empty box at the origin if
+/// a coordinate is not finite.
+fn scale_and_box(frame: &Frame) -> (f32, (Vec3, Vec3)) {
     if !finite(frame) {
-        return f32::INFINITY;
+        return (f32::INFINITY, (Vec3::ZERO, Vec3::ZERO));
     }
     let (low, high) = corners(frame);
-    low.abs().max(high.abs()).max_element()
+    (low.abs().max(high.abs()).max_element(), (low, high))
 }
 
 /// The points at `places` (a patch's; at most `PATCH`), the rest of the frame repeating the
