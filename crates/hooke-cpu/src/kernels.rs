@@ -805,6 +805,12 @@ trait SliceForces {
     /// Whether [`SliceForces::of`] reads `own`; others get zeros, and the vertex pass loads a
     /// slice's positions after its force (fewer values held across the force's loop).
     const READS_OWN: bool = false;
+    /// Slice `slice`'s positions as [`SliceForces::of`] reads them (zeros where it reads
+    /// none), for a pass that has no positions of its own to hand it.
+    #[inline(always)]
+    fn own<S: Simd>(&self, simd: S, _slice: usize) -> [S::V; 3] {
+        [simd.splat(0.0); 3]
+    }
     /// The net spring force on slice `slice`, whose positions are `own`.
     fn of<S: Simd>(&self, simd: S, slice: usize, own: [S::V; 3]) -> [S::V; 3];
 }
@@ -817,6 +823,10 @@ struct Gathered<'a, const POINTS: bool> {
 
 impl<const POINTS: bool> SliceForces for Gathered<'_, POINTS> {
     const READS_OWN: bool = true;
+    #[inline(always)]
+    fn own<S: Simd>(&self, simd: S, slice: usize) -> [S::V; 3] {
+        own_positions::<S, false>(simd, self.current, slice)
+    }
     #[inline(always)]
     fn of<S: Simd>(&self, simd: S, slice: usize, own: [S::V; 3]) -> [S::V; 3] {
         gather_slice::<S, POINTS>(simd, self.table, self.current, slice, own)
@@ -1155,14 +1165,9 @@ dispatch! {
     ) -> () => spring_forces_with
 }
 
-/// Stores each slice's net spring force; `current`: the positions, for forces that read them.
+/// Stores each slice's net spring force.
 #[inline(always)]
-fn store_forces<S: Simd>(
-    simd: S,
-    chunk: ForceChunk<'_>,
-    forces: &impl SliceForces,
-    current: Option<Positions<'_>>,
-) {
+fn store_forces<S: Simd>(simd: S, chunk: ForceChunk<'_>, forces: &impl SliceForces) {
     let [ox, oy, oz] = chunk.out;
     for (k, ((bx, by), bz)) in ox
         .iter_mut()
@@ -1171,11 +1176,7 @@ fn store_forces<S: Simd>(
         .enumerate()
     {
         let slice = chunk.first_slice + k;
-        let own = match current {
-            Some(current) => own_positions::<S, false>(simd, current, slice),
-            None => [simd.splat(0.0); 3],
-        };
-        let [fx, fy, fz] = forces.of(simd, slice, own);
+        let [fx, fy, fz] = forces.of(simd, slice, forces.own(simd, slice));
         simd.store(fx, bx);
         simd.store(fy, by);
         simd.store(fz, bz);
@@ -1192,18 +1193,8 @@ fn gather_forces_with<S: Simd>(
 ) {
     let current = Positions::new(current, points);
     match points {
-        None => store_forces(
-            simd,
-            chunk,
-            &Gathered::<false> { table, current },
-            Some(current),
-        ),
-        Some(_) => store_forces(
-            simd,
-            chunk,
-            &Gathered::<true> { table, current },
-            Some(current),
-        ),
+        None => store_forces(simd, chunk, &Gathered::<false> { table, current }),
+        Some(_) => store_forces(simd, chunk, &Gathered::<true> { table, current }),
     }
 }
 
@@ -1230,14 +1221,14 @@ fn accumulate_forces_with<S: Simd>(
                 table,
                 spring_forces,
             };
-            store_forces(simd, chunk, &forces, None);
+            store_forces(simd, chunk, &forces);
         }
         ForcesView::Points(spring_forces) => {
             let forces = AccumulatedPoints {
                 table,
                 spring_forces,
             };
-            store_forces(simd, chunk, &forces, None);
+            store_forces(simd, chunk, &forces);
         }
     }
 }
