@@ -63,6 +63,31 @@ pub struct Binning {
     counts: Vec<u32>,
 }
 
+/// How a sort splits its keys into digits: as few passes as [`MAX_DIGIT_BITS`] allows, of
+/// equal width.
+#[derive(Clone, Copy)]
+struct Digits {
+    passes: u32,
+    width: u32,
+    mask: u32,
+}
+
+impl Digits {
+    fn of(bits: u32) -> Self {
+        let passes = bits.div_ceil(MAX_DIGIT_BITS).max(1);
+        let width = bits.div_ceil(passes).max(1);
+        Self {
+            passes,
+            width,
+            mask: (1u32 << width) - 1,
+        }
+    }
+
+    fn buckets(&self) -> usize {
+        self.mask as usize + 1
+    }
+}
+
 /// How a pass cuts `n` entries into chunks.
 #[derive(Clone, Copy)]
 struct Chunks {
@@ -94,36 +119,59 @@ impl Binning {
         bits: u32,
         keys: impl Fn(usize, &mut [u32]) + Sync,
     ) -> &[Entry] {
-        let passes = bits.div_ceil(MAX_DIGIT_BITS).max(1);
-        let width = bits.div_ceil(passes).max(1);
-        let (buckets, mask) = (1usize << width, (1u32 << width) - 1);
+        let digits = Digits::of(bits);
         self.entries.resize(n, 0);
         if n == 0 {
             return &self.entries;
         }
-        let chunks = Chunks::new(n, buckets);
-        self.spare.resize(n, 0);
-        self.counts.clear();
-        self.counts.resize(chunks.count * buckets, 0);
+        let chunks = self.prepare(n, digits);
         // The keys, and the first digit's histogram, in one pass.
         self.entries
             .par_chunks_mut(chunks.len)
-            .zip(self.counts.par_chunks_mut(buckets))
+            .zip(self.counts.par_chunks_mut(digits.buckets()))
             .enumerate()
             .for_each(|(c, (entries, counts))| {
-                key_chunk(c * chunks.len, &keys, entries, counts, mask);
+                key_chunk(c * chunks.len, &keys, entries, counts, digits.mask);
             });
-        for pass in 0..passes {
-            let shift = pass * width;
-            if pass > 0 {
-                count_digits(&self.entries, &mut self.counts, shift, mask, chunks);
+        self.digit_passes(digits, chunks, true)
+    }
+
+    /// Sorts the entries that `fill` pushes (in ascending order of their low 32 bits, every
+    /// key below `2^bits`) by key, stably.
+    pub fn sort_entries(&mut self, bits: u32, fill: impl FnOnce(&mut Vec<Entry>)) -> &[Entry] {
+        let digits = Digits::of(bits);
+        self.entries.clear();
+        fill(&mut self.entries);
+        if self.entries.is_empty() {
+            return &self.entries;
+        }
+        let chunks = self.prepare(self.entries.len(), digits);
+        self.digit_passes(digits, chunks, false)
+    }
+
+    /// The chunks of a sort of `n` entries, and the buffers sized for them.
+    fn prepare(&mut self, n: usize, digits: Digits) -> Chunks {
+        let chunks = Chunks::new(n, digits.buckets());
+        self.spare.resize(n, 0);
+        self.counts.clear();
+        self.counts.resize(chunks.count * digits.buckets(), 0);
+        chunks
+    }
+
+    /// Every digit's pass over the entries; the first digit's histogram is in `counts`
+    /// already if `counted`.
+    fn digit_passes(&mut self, digits: Digits, chunks: Chunks, counted: bool) -> &[Entry] {
+        for pass in 0..digits.passes {
+            let shift = pass * digits.width;
+            if pass > 0 || !counted {
+                count_digits(&self.entries, &mut self.counts, shift, digits.mask, chunks);
             }
             scatter(
                 &self.entries,
                 &mut self.spare,
                 &mut self.counts,
                 shift,
-                mask,
+                digits.mask,
                 chunks,
             );
             std::mem::swap(&mut self.entries, &mut self.spare);
@@ -271,6 +319,29 @@ mod tests {
                 .map(|&e| (key_of(e), vertex_of(e)))
                 .collect();
             assert_eq!(sorted, expected, "{n} keys of {bits} bits");
+        }
+    }
+
+    #[test]
+    fn sorting_given_entries_equals_a_stable_comparison_sort() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut binning = Binning::default();
+        for (n, bits, range) in [
+            (0, 8, 1u64 << 8),
+            (3000, 16, 40),
+            (MIN_CHUNK * 3, 24, 1 << 24),
+        ] {
+            // Every third vertex or so, in ascending order.
+            let mut given = Vec::new();
+            for v in 0..n as u32 {
+                if rng.random_bool(0.3) {
+                    given.push(entry(rng.random_range(0..range) as u32, v));
+                }
+            }
+            let mut expected = given.clone();
+            expected.sort_by_key(|&e| key_of(e));
+            let sorted = binning.sort_entries(bits, |out| out.extend_from_slice(&given));
+            assert_eq!(sorted, expected, "{n} vertices, {bits} bits");
         }
     }
 

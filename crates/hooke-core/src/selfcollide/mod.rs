@@ -24,6 +24,7 @@ mod awake;
 mod binning;
 mod culling;
 mod disjoint;
+mod keyed;
 mod nearby;
 mod parts;
 mod points;
@@ -38,6 +39,7 @@ use ahead::Ahead;
 use awake::with_pool_awake;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
+use keyed::{Keyed, sorted_with_suspects};
 use nearby::Nearby;
 pub use parts::{PartTimes, Stopwatch};
 pub use points::{BlockPoints, LANES, Points};
@@ -337,6 +339,8 @@ const MOST_UNPROVED: u32 = 64;
 #[derive(Debug)]
 pub struct Resolver {
     binning: Binning,
+    /// The keys of a local pass sorted on its own (without `ahead`).
+    keyed: Keyed,
     /// Every grid's sort of a step's local passes, made before the first (see `ahead`).
     ahead: Ahead,
     culling: Culling,
@@ -370,6 +374,7 @@ impl Default for Resolver {
     fn default() -> Self {
         Self {
             binning: Binning::default(),
+            keyed: Keyed::default(),
             ahead: Ahead::default(),
             culling: Culling::default(),
             positions: Vec::new(),
@@ -554,10 +559,13 @@ impl Resolver {
     /// passes to repair (see `ahead`): each sort alone runs on one thread.
     fn sort_ahead(&mut self, config: &SelfCollision) {
         let bits = self.local_bits();
-        self.ahead
-            .sort_all(self.nearby.positions(), config.grids, |k| {
-                GridKeys::with_bits(bits, config, k)
-            });
+        let nearby = &self.nearby;
+        self.ahead.sort_all(
+            nearby.positions(),
+            (nearby.suspects(), nearby.flagged()),
+            config.grids,
+            |k| GridKeys::with_bits(bits, config, k),
+        );
     }
 
     /// The key bits of a local pass over the nearby vertices.
@@ -578,17 +586,25 @@ impl Resolver {
         // windows are the same: a run of one key still holds every vertex of the cell, in
         // vertex order, and a window takes only the cell's vertices (see `window_of`). The
         // moves come in this sort's order, not a full pass's; each vertex moves once a pass.
-        let (vertices, positions) = (self.nearby.vertices(), self.nearby.positions());
-        let keys = GridKeys::with_bits(self.local_bits(), config, k);
+        // Only the vertices that share a key with a suspect are sorted (see `keyed`).
         let nearby = &self.nearby;
+        let (vertices, positions) = (nearby.vertices(), nearby.positions());
+        let suspects = nearby.suspects();
+        let keys = GridKeys::with_bits(self.local_bits(), config, k);
         let moved = self.movers.iter().map(|&v| nearby.slot(v));
         let mut watch = Stopwatch::start(self.timing);
-        let sorted = match self.ahead.order(k as usize, positions, moved, &keys) {
+        let flags = (suspects, nearby.flagged());
+        let sorted = match self.ahead.order(k as usize, positions, flags, moved, &keys) {
             Some(sorted) => sorted,
-            None => sorted_for_grid(&mut self.binning, positions, &keys),
+            None => sorted_with_suspects(
+                &mut self.binning,
+                &mut self.keyed,
+                positions,
+                suspects,
+                &keys,
+            ),
         };
         self.parts.sorting += watch.lap();
-        let suspects = self.nearby.suspects();
         let pass = Pass {
             keys: &keys,
             positions,

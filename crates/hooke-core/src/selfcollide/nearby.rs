@@ -27,6 +27,9 @@ pub(super) struct Nearby {
     /// the vertex, where the culling's is two loads away at random addresses (its patch,
     /// then the patch's flag), which took a third of the window tests' time.
     suspects: Vec<bool>,
+    /// The slots made suspects since the vertices were last listed, in order (a flag is
+    /// only ever set within a step).
+    flagged: Vec<u32>,
     /// The positions before the last [`Nearby::gather`], kept for the next.
     earlier_positions: Vec<Vec3>,
     /// Each mesh vertex's index in `vertices`, `u32::MAX` for the others.
@@ -66,6 +69,7 @@ impl Nearby {
         self.vertices.clear();
         self.positions.clear();
         self.suspects.clear();
+        self.flagged.clear();
         self.covered_list.clear();
         self.suspects_covered = 0;
         self.pending.clear();
@@ -116,7 +120,12 @@ impl Nearby {
                 let bits = culling.suspect_bits_of(p);
                 for (k, &v) in culling.members_of(p).iter().enumerate() {
                     if bits >> k & 1 != 0 {
-                        self.suspects[self.slots[v as usize] as usize] = true;
+                        let slot = self.slots[v as usize];
+                        let flag = &mut self.suspects[slot as usize];
+                        if !*flag {
+                            *flag = true;
+                            self.flagged.push(slot);
+                        }
                     }
                 }
             }
@@ -191,6 +200,7 @@ impl Nearby {
                 },
             );
         debug_assert!(self.vertices.is_sorted_by(|a, b| a < b));
+        self.flagged.clear();
         let slots = Disjoint::new(&mut self.slots);
         self.vertices
             .par_iter()
@@ -219,6 +229,12 @@ impl Nearby {
     /// Whether each is one of the culling's suspects, in the same order.
     pub fn suspects(&self) -> &[bool] {
         &self.suspects
+    }
+
+    /// The slots made suspects since the vertices were last listed (which renumbers them),
+    /// in the order made.
+    pub fn flagged(&self) -> &[u32] {
+        &self.flagged
     }
 
     /// Moves the vertices of `moves` (every one of them covered).
