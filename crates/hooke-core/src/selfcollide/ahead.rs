@@ -33,9 +33,9 @@ pub(super) struct Ahead {
     /// (see `keyed`), whose keys `keyed[k]` keeps.
     binnings: Vec<Binning>,
     keyed: Vec<Keyed>,
-    /// Which slots were suspects when sorted, and how many had been made suspects since the
-    /// vertices were listed.
-    suspects: Vec<bool>,
+    /// How many vertices the sorts were made for, and how many had been made suspects since
+    /// they were listed.
+    count: usize,
     flagged: usize,
     /// Whether the sorts are this step's (cleared when it ends). Within a step, the nearby
     /// vertices are listed again (renumbering their slots) only when a covering adds
@@ -75,8 +75,7 @@ impl Ahead {
                 keyed.key(positions, suspects, &keys);
                 keyed.sort(binning, keys.bits);
             });
-        self.suspects.clear();
-        self.suspects.extend_from_slice(suspects);
+        self.count = positions.len();
         self.flagged = flagged.len();
         self.valid = true;
     }
@@ -99,7 +98,7 @@ impl Ahead {
         moved: impl Iterator<Item = u32>,
         keys: &GridKeys,
     ) -> Option<&[Entry]> {
-        if !self.valid || positions.len() != self.suspects.len() || k >= self.binnings.len() {
+        if !self.valid || positions.len() != self.count || k >= self.binnings.len() {
             return None;
         }
         let Self {
@@ -157,8 +156,8 @@ impl Ahead {
             }
         }
         // The other vertices of the keys added (7-15 keys an order at 512^2 in contact), in
-        // one scan whose test is mostly a bit of a 256-bit mask held in registers: a lookup
-        // in `added_set` for every vertex took a third of the order's time.
+        // one scan whose test is mostly a bit of a 256-bit mask held in registers rather than
+        // a load from `added_set`'s table for every vertex.
         if !added.is_empty() {
             let mut mask = [0u64; 4];
             for &key in added.iter() {
