@@ -216,28 +216,18 @@ impl Ahead {
 mod tests {
     use std::collections::HashSet;
 
-    use rand::{RngExt, SeedableRng};
+    use rand::RngExt;
 
     use super::super::binning::{key_of, vertex_of};
+    use super::super::key_bits;
     use super::super::keyed::sorted_with_suspects;
-    use super::super::{SelfCollision, key_bits};
+    use super::super::keyed::tests::{CELLS, cloud};
     use super::*;
 
     #[test]
     fn a_repaired_order_is_the_sort_of_the_moved_positions() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let config = SelfCollision {
-            distance: 0.005,
-            cell_size: 0.01,
-            grids: 4,
-            window: 4,
-        };
-        // Cells of a few points each, so that many keys repeat.
-        let n = 5000;
-        let start: Vec<Vec3> = (0..n)
-            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()) * 0.15)
-            .collect();
-        let start_suspects: Vec<bool> = (0..n).map(|_| rng.random_bool(0.2)).collect();
+        let (config, n) = (CELLS, 5000);
+        let (mut rng, start, start_suspects) = cloud(11, n, 0.15, 0.2);
         // 8 bits: keys of far cells alike, and sets that hold other keys than the suspects'.
         for bits in [8, key_bits(n), 24] {
             let keys: Vec<GridKeys> = (0..config.grids)

@@ -119,10 +119,11 @@ impl KeySet {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use std::collections::HashSet;
 
     use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     use super::super::binning::key_of;
     use super::super::{SelfCollision, sorted_for_grid};
@@ -141,22 +142,37 @@ mod tests {
         assert!(!set.contains(70_000));
     }
 
+    /// Cells 1 cm wide, of 4 grids, for [`cloud`].
+    pub(in crate::selfcollide) const CELLS: SelfCollision = SelfCollision {
+        distance: 0.005,
+        cell_size: 0.01,
+        grids: 4,
+        window: 4,
+    };
+
+    /// `n` points at random in a cube `extent` wide (a few points a cell of [`CELLS`], so that
+    /// many keys repeat), each a suspect with chance `suspects`; and the generator, seeded
+    /// with `seed`.
+    pub(in crate::selfcollide) fn cloud(
+        seed: u64,
+        n: usize,
+        extent: f32,
+        suspects: f64,
+    ) -> (ChaCha8Rng, Vec<Vec3>, Vec<bool>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let positions = (0..n)
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()) * extent)
+            .collect();
+        let flags = (0..n).map(|_| rng.random_bool(suspects)).collect();
+        (rng, positions, flags)
+    }
+
     /// The sort of the vertices that share a key with a suspect is the sort of all of them
     /// less other keys' runs: the same run of every suspect's key, in the same order.
     #[test]
     fn the_suspects_keys_sort_as_in_a_sort_of_all() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
-        let config = SelfCollision {
-            distance: 0.005,
-            cell_size: 0.01,
-            grids: 4,
-            window: 4,
-        };
-        let n = 4000;
-        let positions: Vec<Vec3> = (0..n)
-            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()) * 0.12)
-            .collect();
-        let suspects: Vec<bool> = (0..n).map(|_| rng.random_bool(0.1)).collect();
+        let (config, n) = (CELLS, 4000);
+        let (_, positions, suspects) = cloud(17, n, 0.12, 0.1);
         for bits in [8, 16, 24] {
             for k in 0..config.grids {
                 let keys = GridKeys::with_bits(bits, &config, k);
