@@ -3,7 +3,8 @@
 //! the passes are skipped and the step gives the same bits; when it fails anywhere, they run.
 //!
 //! Vertices are grouped into patches of up to [`PATCH`], close together where they were first
-//! seen (Morton order of those positions). Each patch keeps reference positions `R_i`, taken
+//! seen (Morton order of those positions), and the patches are numbered in the order of the
+//! owner's memory (see [`Culling::build`]). Each patch keeps reference positions `R_i`, taken
 //! when its shape was last renewed. Each step its vertices' displacements `u_i = x_i - R_i` are
 //! split into a centre `c_P` and a remainder of at most `E_P`; any centre will do, and the
 //! measurement takes whichever of two leaves the smaller `E_P` (where the patch's last step of
@@ -24,8 +25,8 @@
 //!   `g_PQ - |Δ(c_P - c_Q)| - E_P - E_Q >= distance + margin`. Otherwise `g_PQ` is measured
 //!   again, and failing that, the vertices themselves.
 //! - **Far pairs** are clear when their bounding boxes lie further apart than the distance
-//!   along some axis: a bounding volume hierarchy over the patches (Morton order, refitted each
-//!   step) finds the few that do not, whose vertices are then measured.
+//!   along some axis: a bounding volume hierarchy over the patches (halving their numbering,
+//!   refitted each step) finds the few that do not, whose vertices are then measured.
 //!
 //! When some pair is closer than the distance, the proof still names the vertices it failed
 //! for, measured against the distance plus a margin ([`MARGIN`] of it): in each pair of
@@ -663,6 +664,7 @@ impl Culling {
         self.members
             .par_chunks_mut(PATCH)
             .for_each(|members| members.sort_unstable_by_key(|&v| points.place(v)));
+        self.number_by_place(points);
         self.slot_of = vec![0u32; n];
         for (slot, &v) in self.members.iter().enumerate() {
             self.slot_of[v as usize] = slot as u32;
@@ -764,6 +766,33 @@ impl Culling {
         self.nodes.clear();
         self.add_node(0, count as u32);
         self.built_for = (n, adjacency.neighbors.len());
+    }
+
+    /// Renumbers the whole patches in the order of their first places (a short last patch
+    /// stays last). Measuring every patch each step reads its points from the owner's memory,
+    /// a run of 8 places (32 bytes an axis) from each of 8 rows of a grid's mesh; in Morton
+    /// order of the patches those runs came in no order a prefetcher could follow, and the
+    /// loads waited on memory. In place order each row of patches reads 24 runs that advance
+    /// together through the owner's arrays. On an AMD EPYC VM, measuring's share of a
+    /// 1-thread run of the bench's 512^2 workload in contact fell from 11.4-17.1% (median 15.3)
+    /// to 10.9-12.9% (11.3) in six runs each, with the same moves; the bench's measuring part
+    /// (2 threads) from a median of 0.44 ms a step to 0.36 in eighteen. The far search over
+    /// this numbering took the same share as over the Morton order.
+    fn number_by_place<P: Points + ?Sized>(&mut self, points: &P) {
+        let whole = self.members.len() / PATCH * PATCH;
+        let mut firsts: Vec<(u32, usize)> = self.members[..whole]
+            .chunks(PATCH)
+            .enumerate()
+            .map(|(k, members)| (points.place(members[0]), k))
+            .collect();
+        firsts.sort_unstable();
+        let members = &self.members;
+        self.members = firsts
+            .iter()
+            .flat_map(|&(_, k)| &members[k * PATCH..(k + 1) * PATCH])
+            .chain(&members[whole..])
+            .copied()
+            .collect();
     }
 
     /// Adds the subtree over patches `first..end`; returns its root's index.
@@ -2018,6 +2047,44 @@ pub(crate) mod tests {
                 assert_eq!(found, expected.sqrt(), "patches {p} and {q}");
             }
         }
+    }
+
+    #[test]
+    fn patches_are_numbered_by_their_first_place() {
+        // Stored last vertex first, so places run against the vertices' Morton order; the
+        // count leaves a short last patch.
+        let side = 37u32;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let points = Reversed(folding_sheet(side, 0.01, 0, 10, &mut rng));
+        let n = points.count();
+        let adjacency = Adjacency::from_springs(n, &grid_springs(side, side));
+        let mut culling = Culling::default();
+        culling.prove(&points, &adjacency, 0.005);
+        let mut seen = culling.members.clone();
+        seen.sort_unstable();
+        assert!(
+            seen.iter().copied().eq(0..n as u32),
+            "every vertex in one patch"
+        );
+        let count = n.div_ceil(PATCH) as u32;
+        let firsts: Vec<u32> = (0..count)
+            .map(|p| points.place(culling.members_of(p)[0]))
+            .collect();
+        for p in 0..count {
+            let places: Vec<u32> = culling
+                .members_of(p)
+                .iter()
+                .map(|&v| points.place(v))
+                .collect();
+            assert!(places.is_sorted(), "patch {p}'s members in place order");
+        }
+        assert_eq!(culling.members_of(count - 1).len(), n % PATCH);
+        assert!(firsts[..count as usize - 1].is_sorted(), "{firsts:?}");
+        // Each patch's places are those its vertices' positions group, not a run of places.
+        assert!((0..count - 1).any(|p| {
+            let places = culling.members_of(p).iter().map(|&v| points.place(v));
+            places.max().unwrap() - firsts[p as usize] >= PATCH as u32
+        }));
     }
 
     #[test]
