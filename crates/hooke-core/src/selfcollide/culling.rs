@@ -160,7 +160,8 @@ struct NearPair {
 /// while it was checked.
 type SuspectPairs = Vec<([u32; 2], Option<[Close; 2]>)>;
 
-/// A node of the hierarchy over patches `first..end`.
+/// A node of the hierarchy over the patches at `first..end` of their Morton order; a leaf's
+/// `first` is its patch (and `end` one more).
 #[derive(Clone, Copy, Debug)]
 struct Node {
     first: u32,
@@ -664,7 +665,7 @@ impl Culling {
         self.members
             .par_chunks_mut(PATCH)
             .for_each(|members| members.sort_unstable_by_key(|&v| points.place(v)));
-        self.number_by_place(points);
+        let morton_order = self.number_by_place(points);
         self.slot_of = vec![0u32; n];
         for (slot, &v) in self.members.iter().enumerate() {
             self.slot_of[v as usize] = slot as u32;
@@ -764,21 +765,25 @@ impl Culling {
             .collect();
         self.near_patches = rows.into_iter().flatten().collect();
         self.nodes.clear();
-        self.add_node(0, count as u32);
+        self.add_node(0, count as u32, &morton_order);
         self.built_for = (n, adjacency.neighbors.len());
     }
 
     /// Renumbers the whole patches in the order of their first places (a short last patch
-    /// stays last). Measuring every patch each step reads its points from the owner's memory,
-    /// a run of 8 places (32 bytes an axis) from each of 8 rows of a grid's mesh; in Morton
-    /// order of the patches those runs came in no order a prefetcher could follow, and the
-    /// loads waited on memory. In place order each row of patches reads 24 runs that advance
-    /// together through the owner's arrays. On an AMD EPYC VM, measuring's share of a
-    /// 1-thread run of the bench's 512^2 workload in contact fell from 11.4-17.1% (median 15.3)
-    /// to 10.9-12.9% (11.3) in six runs each, with the same moves; the bench's measuring part
-    /// (2 threads) from a median of 0.44 ms a step to 0.36 in eighteen. The far search over
-    /// this numbering took the same share as over the Morton order.
-    fn number_by_place<P: Points + ?Sized>(&mut self, points: &P) {
+    /// stays last); returns the new numbers in the patches' Morton order, which the hierarchy
+    /// keeps. (Halving the place order instead gives it strips of patches at its lower levels;
+    /// in eight runs each the bench's parts that search it read 4-17% higher by their medians,
+    /// within this VM's noise, so the hierarchy keeps the order it was tuned with.)
+    ///
+    /// Measuring every patch each step reads its points from the owner's memory, a run of 8
+    /// places (32 bytes an axis) from each of 8 rows of a grid's mesh. In Morton order of the
+    /// patches those runs came in no order a prefetcher could follow, and `perf` put most of
+    /// measuring's samples on the instructions waiting for them; in place order a row of
+    /// patches reads 24 runs that advance together through the owner's arrays. On an AMD EPYC
+    /// VM, measuring's share of the samples of a 1-thread run of the bench's 512^2 workload
+    /// in contact was 11.4-17.1% (median 15.1) in Morton order and 10.9-12.9% (11.4) in place
+    /// order, nine runs each, with the same moves.
+    fn number_by_place<P: Points + ?Sized>(&mut self, points: &P) -> Vec<u32> {
         let whole = self.members.len() / PATCH * PATCH;
         let mut firsts: Vec<(u32, usize)> = self.members[..whole]
             .chunks(PATCH)
@@ -793,21 +798,30 @@ impl Culling {
             .chain(&members[whole..])
             .copied()
             .collect();
+        let mut morton_order: Vec<u32> = (0..self.members.len().div_ceil(PATCH) as u32).collect();
+        for (patch, &(_, k)) in firsts.iter().enumerate() {
+            morton_order[k] = patch as u32;
+        }
+        morton_order
     }
 
-    /// Adds the subtree over patches `first..end`; returns its root's index.
-    fn add_node(&mut self, first: u32, end: u32) -> u32 {
+    /// Adds the subtree over patches `morton_order[first..end]`; returns its root's index.
+    fn add_node(&mut self, first: u32, end: u32, morton_order: &[u32]) -> u32 {
         let index = self.nodes.len() as u32;
+        let leaf = morton_order[first as usize];
         self.nodes.push(Node {
-            first,
-            end,
+            first: if end - first > 1 { first } else { leaf },
+            end: if end - first > 1 { end } else { leaf + 1 },
             children: None,
             low: Vec3::ZERO,
             high: Vec3::ZERO,
         });
         if end - first > 1 {
             let middle = first + (end - first) / 2;
-            let children = [self.add_node(first, middle), self.add_node(middle, end)];
+            let children = [
+                self.add_node(first, middle, morton_order),
+                self.add_node(middle, end, morton_order),
+            ];
             self.nodes[index as usize].children = Some(children);
         }
         index
