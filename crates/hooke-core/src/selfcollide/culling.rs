@@ -25,8 +25,8 @@
 //!   `g_PQ - |Δ(c_P - c_Q)| - E_P - E_Q >= distance + margin`. Otherwise `g_PQ` is measured
 //!   again, and failing that, the vertices themselves.
 //! - **Far pairs** are clear when their bounding boxes lie further apart than the distance
-//!   along some axis: a bounding volume hierarchy over the patches (halving their numbering,
-//!   refitted each step) finds the few that do not, whose vertices are then measured.
+//!   along some axis: a bounding volume hierarchy over the patches (halving their Morton
+//!   order, refitted each step) finds the few that do not, whose vertices are then measured.
 //!
 //! When some pair is closer than the distance, the proof still names the vertices it failed
 //! for, measured against the distance plus a margin ([`MARGIN`] of it): in each pair of
