@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use super::GridKeys;
 use super::binning::{Binning, Entry, entry};
-use super::keyed::{KeySet, Keyed};
+use super::keyed::{KeySet, Keyed, sorted_with_suspects};
 
 /// The grids' orders of one step's nearby vertices, kept by the resolver so a step allocates
 /// nothing.
@@ -71,9 +71,7 @@ impl Ahead {
             .zip(&mut self.keyed)
             .zip(0..grids)
             .for_each(|((binning, keyed), k)| {
-                let keys = keys(k);
-                keyed.key(positions, suspects, &keys);
-                keyed.sort(binning, keys.bits);
+                sorted_with_suspects(binning, keyed, positions, suspects, &keys(k));
             });
         self.count = positions.len();
         self.flagged = flagged.len();
@@ -220,7 +218,6 @@ mod tests {
 
     use super::super::binning::{key_of, vertex_of};
     use super::super::key_bits;
-    use super::super::keyed::sorted_with_suspects;
     use super::super::keyed::tests::{CELLS, cloud};
     use super::*;
 

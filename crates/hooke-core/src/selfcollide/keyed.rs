@@ -47,11 +47,6 @@ impl Keyed {
                 .map(|(&key, slot)| entry(key, slot)),
         );
     }
-
-    /// The slots that share a key with a suspect, sorted by key (stably), into `binning`.
-    pub fn sort<'a>(&self, binning: &'a mut Binning, bits: u32) -> &'a [Entry] {
-        binning.sort_entries(bits, |out| self.entries(out))
-    }
 }
 
 /// The nearby vertices (`positions`, by slot) that share grid `keys`' key with a suspect
@@ -64,7 +59,7 @@ pub(super) fn sorted_with_suspects<'a>(
     keys: &GridKeys,
 ) -> &'a [Entry] {
     keyed.key(positions, suspects, keys);
-    keyed.sort(binning, keys.bits)
+    binning.sort_entries(keys.bits, |out| keyed.entries(out))
 }
 
 /// Keys as a bit each of a table indexed by their low [`KEY_SET_BITS`] bits: a set that says
