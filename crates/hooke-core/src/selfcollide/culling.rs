@@ -808,10 +808,15 @@ impl Culling {
     /// Adds the subtree over patches `morton_order[first..end]`; returns its root's index.
     fn add_node(&mut self, first: u32, end: u32, morton_order: &[u32]) -> u32 {
         let index = self.nodes.len() as u32;
-        let leaf = morton_order[first as usize];
+        let (node_first, node_end) = if end - first > 1 {
+            (first, end)
+        } else {
+            let patch = morton_order[first as usize];
+            (patch, patch + 1)
+        };
         self.nodes.push(Node {
-            first: if end - first > 1 { first } else { leaf },
-            end: if end - first > 1 { end } else { leaf + 1 },
+            first: node_first,
+            end: node_end,
             children: None,
             low: Vec3::ZERO,
             high: Vec3::ZERO,
