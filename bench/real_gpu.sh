@@ -6,7 +6,8 @@
 #   bench/real_gpu.sh HOOKE_BINARY OUT_DIR [SIZES [WARP_PEER_OPTIONS...]]
 #
 # Needs a Vulkan driver for the GPU (WGPU_BACKEND=vulkan is set here) and `import warp` to work.
-# Every table also goes to OUT_DIR.
+# Every table also goes to OUT_DIR. GPU_METHODS picks hooke's methods (default: those Warp has a
+# peer for; the paper's blend paths take over a minute at 2048^2 on an H200).
 set -euo pipefail
 hooke=$1
 out=$2
@@ -22,8 +23,9 @@ nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.sm,clocks.max.sm,
   --format=csv | tee "$out/nvidia-smi.csv" || true
 
 echo "== hooke bench --backend gpu"
-"$hooke" bench --backend gpu --sizes "$sizes" --irregular 65536 --shuffled 0 \
-  --steps 200 --rounds 3 --warmup 20 2>&1 | tee "$out/hooke-gpu.txt"
+"$hooke" bench --backend gpu --gpu-methods "${GPU_METHODS:-gather,atomic-f32,incidence}" \
+  --sizes "$sizes" --irregular 65536 --shuffled 0 --steps 200 --rounds 3 --warmup 20 2>&1 |
+  tee "$out/hooke-gpu.txt"
 
 echo "== the same grid on hooke's GPU and in Warp"
 "$hooke" run "$scenes/bench-grid-128.toml" --backend gpu --method gather --steps 100 \
