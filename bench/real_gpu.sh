@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The real-GPU figures of the README, in one run: `hooke bench --backend gpu` over the grids and
-# the irregular mesh on Vulkan, then the NVIDIA Warp peer (bench/warp_peer.py, CUDA) on the same
-# workload, after checking that hooke's GPU and Warp step the same grid to the same state.
+# the irregular mesh on Vulkan, with and without self-collision, then the NVIDIA Warp peer
+# (bench/warp_peer.py, CUDA) on the same workload, after checking that hooke's GPU and Warp step
+# the same grid to the same state.
 #
 #   bench/real_gpu.sh HOOKE_BINARY OUT_DIR [SIZES [WARP_PEER_OPTIONS...]]
 #
@@ -26,6 +27,16 @@ echo "== hooke bench --backend gpu"
 "$hooke" bench --backend gpu --gpu-methods "${GPU_METHODS:-gather,atomic-f32,incidence}" \
   --sizes "$sizes" --irregular 65536 --shuffled 0 --steps 200 --rounds 3 --warmup 20 2>&1 |
   tee "$out/hooke-gpu.txt"
+
+echo "== hooke bench --backend gpu --self-collision 4"
+"$hooke" bench --backend gpu --gpu-methods gather --sizes "$sizes" --irregular 65536 \
+  --shuffled 0 --self-collision 4 --steps 100 --rounds 3 --warmup 20 2>&1 |
+  tee "$out/hooke-gpu-self-collision.txt"
+
+if ! python3 -c "import warp" 2>/dev/null; then
+  echo "== no warp peer: python3 cannot import warp (see the README's real-GPU sections)" >&2
+  exit 1
+fi
 
 echo "== the same grid on hooke's GPU and in Warp"
 "$hooke" run "$scenes/bench-grid-128.toml" --backend gpu --method gather --steps 100 \
