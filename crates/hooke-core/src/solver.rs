@@ -107,6 +107,20 @@ pub trait Solver: Send {
     /// One step with each phase timed (see [`PhaseTimes`]). Results equal [`Solver::step`]'s.
     fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError>;
 
+    /// `steps` steps with each phase timed, a [`PhaseTimes`] a step. Results equal
+    /// [`Solver::step`]'s. A solver that can time steps without stopping between them (the
+    /// GPU: several to a submission) does; the others time them one at a time.
+    fn steps_timed(&mut self, steps: u32) -> Result<(Vec<PhaseTimes>, TimingSource), SimError> {
+        let mut times = Vec::with_capacity(steps as usize);
+        let mut source = TimingSource::WallClock;
+        for _ in 0..steps {
+            let (step, from) = self.step_timed()?;
+            times.push(step);
+            source = from;
+        }
+        Ok((times, source))
+    }
+
     /// Copies the current state out of the solver (a read-back for solvers whose state is remote).
     fn read_state(&self) -> Result<State, SimError>;
 

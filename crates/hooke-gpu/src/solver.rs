@@ -37,7 +37,8 @@ use crate::methods::{Accumulation, GpuMemory, GpuMethod};
 use crate::model::{GpuModel, vec4s};
 use crate::state::GpuState;
 use crate::step::{
-    Fused, PassSink, Phase, Record, TIMESTAMP_SLOTS, Timestamped, WallClock, add_phase,
+    Fused, PassSink, Phase, Record, TIMED_STEPS_PER_SUBMISSION, TIMESTAMP_SLOTS, Timestamped,
+    WallClock, add_phase,
 };
 
 /// The force and integration passes: gather's one, or scatter's force pass, accumulation
@@ -260,11 +261,11 @@ impl GpuSolver {
             let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass timestamps"),
                 ty: wgpu::QueryType::Timestamp,
-                count: TIMESTAMP_SLOTS,
+                count: TIMESTAMP_SLOTS * TIMED_STEPS_PER_SUBMISSION,
             });
             let resolved = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("resolved timestamps"),
-                size: u64::from(TIMESTAMP_SLOTS) * 8,
+                size: u64::from(TIMESTAMP_SLOTS * TIMED_STEPS_PER_SUBMISSION) * 8,
                 usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             });
@@ -549,53 +550,72 @@ impl GpuSolver {
         Ok(())
     }
 
-    /// One step with each phase timed: GPU timestamps, or the wall clock when the adapter has
-    /// none. The same passes as every other step.
-    fn run_timed_step(&mut self) -> Result<(PhaseTimes, TimingSource), RunError> {
-        let mut times = PhaseTimes {
+    /// `steps` steps with each phase timed: by GPU timestamps, the steps recorded back to back
+    /// up to [`TIMED_STEPS_PER_SUBMISSION`] to a submission, or by the wall clock when the
+    /// adapter has no timestamps (each pass then submitted alone and waited for). The same
+    /// passes as every other step.
+    fn run_timed_steps(&mut self, steps: u32) -> Result<(Vec<PhaseTimes>, TimingSource), RunError> {
+        let untimed = PhaseTimes {
             force_accumulation: self.accumulates_separately().then_some(Duration::ZERO),
             ..Default::default()
         };
-        let source = match &self.timestamps {
-            Some((set, resolved)) => {
-                let mut encoder = self
-                    .context
-                    .device
-                    .create_command_encoder(&Default::default());
+        let mut times = Vec::with_capacity(steps as usize);
+        // Handles (reference-counted), so that the status can be checked between submissions.
+        let Some((set, resolved)) = self.timestamps.clone() else {
+            for _ in 0..steps {
+                let mut sink = WallClock {
+                    context: &self.context,
+                    times: untimed,
+                };
+                self.record_step(&mut sink)?;
+                times.push(sink.times);
+                self.state.advance();
+                self.steps_taken += 1;
+                self.check_status()?;
+            }
+            return Ok((times, TimingSource::WallClock));
+        };
+        let period = f64::from(self.context.queue.get_timestamp_period());
+        let mut left = steps;
+        while left > 0 {
+            let batch = left.min(TIMED_STEPS_PER_SUBMISSION);
+            let mut encoder = self
+                .context
+                .device
+                .create_command_encoder(&Default::default());
+            let mut phases_of_steps = Vec::with_capacity(batch as usize);
+            let mut used = 0;
+            for _ in 0..batch {
                 let mut sink = Timestamped {
                     encoder: &mut encoder,
                     groups: self.context.records_debug_groups(),
-                    query_set: set,
+                    query_set: &set,
+                    first: used,
                     phases: Vec::new(),
                 };
                 self.record_step(&mut sink)?;
-                let phases = sink.phases;
-                let used = 2 * phases.len() as u32;
-                encoder.resolve_query_set(set, 0..used, resolved, 0);
-                self.context.queue.submit([encoder.finish()]);
-                let bytes = read_back(&self.context, &[(resolved, u64::from(used) * 8)])?;
-                let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes[0]);
-                let period = f64::from(self.context.queue.get_timestamp_period());
-                for (k, phase) in phases.iter().enumerate() {
-                    let nanos = ticks[2 * k + 1].saturating_sub(ticks[2 * k]) as f64 * period;
-                    add_phase(&mut times, *phase, Duration::from_secs_f64(nanos * 1e-9));
+                used += 2 * sink.phases.len() as u32;
+                phases_of_steps.push(sink.phases);
+                self.state.advance();
+            }
+            encoder.resolve_query_set(&set, 0..used, &resolved, 0);
+            self.context.queue.submit([encoder.finish()]);
+            self.steps_taken += u64::from(batch);
+            let bytes = read_back(&self.context, &[(&resolved, u64::from(used) * 8)])?;
+            let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes[0]);
+            let mut pairs = ticks.chunks_exact(2);
+            for phases in phases_of_steps {
+                let mut step = untimed;
+                for (phase, pair) in phases.into_iter().zip(&mut pairs) {
+                    let nanos = pair[1].saturating_sub(pair[0]) as f64 * period;
+                    add_phase(&mut step, phase, Duration::from_secs_f64(nanos * 1e-9));
                 }
-                TimingSource::Timestamps
+                times.push(step);
             }
-            None => {
-                let mut sink = WallClock {
-                    context: &self.context,
-                    times,
-                };
-                self.record_step(&mut sink)?;
-                times = sink.times;
-                TimingSource::WallClock
-            }
-        };
-        self.state.advance();
-        self.steps_taken += 1;
-        self.check_status()?;
-        Ok((times, source))
+            self.check_status()?;
+            left -= batch;
+        }
+        Ok((times, TimingSource::Timestamps))
     }
 
     /// Records, into `encoder`, copies of the sphere colliders' current places (centre, radius)
@@ -681,7 +701,12 @@ impl Solver for GpuSolver {
     }
 
     fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError> {
-        Ok(self.run_timed_step()?)
+        let (mut times, source) = self.run_timed_steps(1)?;
+        Ok((times.remove(0), source))
+    }
+
+    fn steps_timed(&mut self, steps: u32) -> Result<(Vec<PhaseTimes>, TimingSource), SimError> {
+        Ok(self.run_timed_steps(steps)?)
     }
 
     fn read_state(&self) -> Result<State, SimError> {

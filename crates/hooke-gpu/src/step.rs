@@ -51,8 +51,13 @@ fn in_group(
     }
 }
 
-/// Timestamp slots: two per pass, at most 8 timed passes per step.
+/// Timestamp slots of one step: two per pass, at most 8 timed passes.
 pub const TIMESTAMP_SLOTS: u32 = 16;
+
+/// Timed steps recorded into one submission: back to back, as the fused steps run, so the GPU
+/// does not idle (and perhaps slow its clocks) between them as it did between steps timed one
+/// submission at a time.
+pub const TIMED_STEPS_PER_SUBMISSION: u32 = 10;
 
 /// Records one pass: gets the encoder and the pass's timestamp writes.
 pub type Record<'r> =
@@ -77,24 +82,26 @@ impl PassSink for Fused<'_> {
     }
 }
 
-/// Every pass into one encoder, each timed phase's passes with a timestamp pair.
+/// One step's passes into an encoder, each timed phase's passes with a timestamp pair.
 pub struct Timestamped<'e, 'q> {
     pub encoder: &'e mut wgpu::CommandEncoder,
     pub groups: bool,
     pub query_set: &'q wgpu::QuerySet,
+    /// The step's first slot of `query_set`: the steps of a submission take theirs in turn.
+    pub first: u32,
     /// The phase of each timestamp pair handed out.
     pub phases: Vec<Phase>,
 }
 
 impl PassSink for Timestamped<'_, '_> {
     fn pass(&mut self, phase: Phase, record: &mut Record<'_>) -> Result<(), GpuError> {
-        let index = 2 * self.phases.len() as u32;
-        let writes = (index + 2 <= TIMESTAMP_SLOTS).then(|| {
+        let used = 2 * self.phases.len() as u32;
+        let writes = (used + 2 <= TIMESTAMP_SLOTS).then(|| {
             self.phases.push(phase);
             wgpu::ComputePassTimestampWrites {
                 query_set: self.query_set,
-                beginning_of_pass_write_index: Some(index),
-                end_of_pass_write_index: Some(index + 1),
+                beginning_of_pass_write_index: Some(self.first + used),
+                end_of_pass_write_index: Some(self.first + used + 1),
             }
         });
         in_group(self.encoder, phase, self.groups, writes, record);

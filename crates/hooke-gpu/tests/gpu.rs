@@ -259,6 +259,45 @@ fn fixed_point_overflow_is_reported_not_silent() {
 }
 
 #[test]
+fn steps_timed_in_submissions_equal_plain_steps_and_time_every_step() {
+    let Some(context) = test_context() else {
+        return;
+    };
+    let scene = benchmark_scene(MeshSection::unit_grid(16, 16), 256);
+    // 23 steps: two full submissions of timed steps and a short one.
+    let steps = 23;
+    for method in [
+        GpuMethod::Gather,
+        GpuMethod::Scatter(Accumulation::Incidence),
+    ] {
+        let mut plain = gpu_solver(&context, &scene, method).expect("solver");
+        plain.step(steps).expect("stable");
+        let mut timed = gpu_solver(&context, &scene, method).expect("solver");
+        let (times, source) = timed.steps_timed(steps).expect("timed");
+        assert_eq!(times.len(), steps as usize, "{}", method.name());
+        assert_eq!(timed.steps_taken(), u64::from(steps));
+        assert!(state_of(&timed) == state_of(&plain), "{}", method.name());
+        for (k, step) in times.iter().enumerate() {
+            // Each step reads its own timestamp pairs: a step reading another's slots, or
+            // slots no pass wrote, shows a zero.
+            if source == hooke_core::TimingSource::Timestamps {
+                assert!(
+                    step.force_calculation > std::time::Duration::ZERO,
+                    "{} step {k}",
+                    method.name()
+                );
+                assert_eq!(
+                    step.integration > std::time::Duration::ZERO,
+                    method != GpuMethod::Gather,
+                    "{} step {k}",
+                    method.name()
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn timed_steps_equal_plain_steps_with_either_clock() {
     let Some(context) = test_context() else {
         return;

@@ -300,6 +300,12 @@ impl Simulation {
         self.solver_mut().step_timed()
     }
 
+    /// `steps` steps with each phase timed, a [`PhaseTimes`] a step ([`Solver::steps_timed`]);
+    /// results equal [`Simulation::step`]'s.
+    pub fn steps_timed(&mut self, steps: u32) -> Result<(Vec<PhaseTimes>, TimingSource), SimError> {
+        self.solver_mut().steps_timed(steps)
+    }
+
     pub fn steps_taken(&self) -> u64 {
         self.solver().steps_taken()
     }
