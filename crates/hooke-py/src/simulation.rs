@@ -731,35 +731,18 @@ impl Simulation {
     /// its parts within `collision` where the solver times them (the CPU's), else None.
     fn step_timed<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let (times, source) = py.detach(|| self.with(|s| s.step_timed().or_raise()))?;
-        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-        let dict = PyDict::new(py);
-        dict.set_item("external", ms(times.external))?;
-        dict.set_item("force_calculation", ms(times.force_calculation))?;
-        dict.set_item("force_accumulation", times.force_accumulation.map(ms))?;
-        dict.set_item("integration", ms(times.integration))?;
-        dict.set_item("collision", ms(times.collision))?;
-        let parts = match times.self_collision {
-            Some(parts) => {
-                let dict = PyDict::new(py);
-                dict.set_item("measuring", ms(parts.measuring))?;
-                dict.set_item("pairs", ms(parts.pairs))?;
-                dict.set_item("covering", ms(parts.covering))?;
-                dict.set_item("sorting", ms(parts.sorting))?;
-                dict.set_item("window_tests", ms(parts.window_tests))?;
-                dict.set_item("moving", ms(parts.moving))?;
-                dict.set_item("total", ms(parts.total()))?;
-                Some(dict)
-            }
-            None => None,
-        };
-        dict.set_item("self_collision", parts)?;
-        dict.set_item("total", ms(times.total()))?;
-        let source = match source {
-            hooke_core::TimingSource::Timestamps => "timestamps",
-            hooke_core::TimingSource::WallClock => "wall-clock",
-        };
-        dict.set_item("source", source)?;
-        Ok(dict)
+        timed_step_dict(py, &times, source)
+    }
+
+    /// `steps` steps each timed as `step_timed` times one, a dict a step. A GPU records up to
+    /// 10 of them back to back in one submission, as plain steps run, so it does not idle
+    /// between them.
+    fn steps_timed<'py>(&self, py: Python<'py>, steps: u32) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let (times, source) = py.detach(|| self.with(|s| s.steps_timed(steps).or_raise()))?;
+        times
+            .iter()
+            .map(|step| timed_step_dict(py, step, source))
+            .collect()
     }
 
     /// Triangles, `(T, 3)` uint32.
@@ -898,4 +881,41 @@ impl Simulation {
             s.set_control(control).or_raise()
         })
     }
+}
+
+/// A timed step as `Simulation.step_timed` returns it: each phase in ms, and how it was timed.
+fn timed_step_dict<'py>(
+    py: Python<'py>,
+    times: &hooke_core::PhaseTimes,
+    source: hooke_core::TimingSource,
+) -> PyResult<Bound<'py, PyDict>> {
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    let dict = PyDict::new(py);
+    dict.set_item("external", ms(times.external))?;
+    dict.set_item("force_calculation", ms(times.force_calculation))?;
+    dict.set_item("force_accumulation", times.force_accumulation.map(ms))?;
+    dict.set_item("integration", ms(times.integration))?;
+    dict.set_item("collision", ms(times.collision))?;
+    let parts = match times.self_collision {
+        Some(parts) => {
+            let dict = PyDict::new(py);
+            dict.set_item("measuring", ms(parts.measuring))?;
+            dict.set_item("pairs", ms(parts.pairs))?;
+            dict.set_item("covering", ms(parts.covering))?;
+            dict.set_item("sorting", ms(parts.sorting))?;
+            dict.set_item("window_tests", ms(parts.window_tests))?;
+            dict.set_item("moving", ms(parts.moving))?;
+            dict.set_item("total", ms(parts.total()))?;
+            Some(dict)
+        }
+        None => None,
+    };
+    dict.set_item("self_collision", parts)?;
+    dict.set_item("total", ms(times.total()))?;
+    let source = match source {
+        hooke_core::TimingSource::Timestamps => "timestamps",
+        hooke_core::TimingSource::WallClock => "wall-clock",
+    };
+    dict.set_item("source", source)?;
+    Ok(dict)
 }

@@ -432,6 +432,24 @@ def test_reports_match_the_cli_scene_facts() -> None:
     np.testing.assert_array_equal(hooke.springs(sim.triangles()), sim.springs())
 
 
+@pytest.mark.parametrize("backend", ["cpu", "gpu"])
+def test_steps_timed_time_every_step_and_step_as_step_does(
+    backend: Literal["cpu", "gpu"], request: pytest.FixtureRequest
+) -> None:
+    if backend == "gpu":
+        request.getfixturevalue("gpu")
+    timed = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml", backend=backend)
+    plain = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml", backend=backend)
+    # 13 steps: on a GPU, a submission of 10 timed steps and one of 3.
+    steps = timed.steps_timed(13)
+    plain.step(13)
+    assert len(steps) == 13 and timed.steps_taken == 13
+    assert all(step["force_calculation"] > 0 for step in steps), steps
+    (source,) = {step["source"] for step in steps}
+    assert backend == "gpu" or source == "wall-clock", source
+    np.testing.assert_array_equal(timed.positions(), plain.positions())
+
+
 def test_render_draws_the_cloth(tmp_path: Path, gpu: None) -> None:
     sim = hooke.Simulation.from_scene(SCENES / "cloth-pinned.toml")
     sim.step(200)
