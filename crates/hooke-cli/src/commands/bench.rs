@@ -7,7 +7,7 @@
 //! phases are timed one by one (per-phase columns; the fused step keeps each vertex's forces in
 //! registers and makes one pass instead of two or three). On the GPU the phase-timed steps also
 //! go 10 to a submission, each pass between timestamps: timed one submission at a time, an
-//! H200's passes read up to 2.2x longer in one call than in another while the fused steps'
+//! H200's passes read over twice as long in one call as in another while the fused steps'
 //! times stayed the same. All times are medians per step.
 //!
 //! With `--rounds R`, every solver is built and warmed up first, and then the fused steps are
