@@ -3,6 +3,7 @@
 import os
 import subprocess
 from pathlib import Path
+from typing import Literal
 
 import pytest
 
@@ -41,3 +42,12 @@ def gpu() -> None:
         if os.environ.get("HOOKE_REQUIRE_GPU") == "1":
             pytest.fail("HOOKE_REQUIRE_GPU=1 but no GPU adapter")
         pytest.skip("no GPU adapter")
+
+
+@pytest.fixture(params=["cpu", "gpu"])
+def backend(request: pytest.FixtureRequest) -> Literal["cpu", "gpu"]:
+    """Each solver backend in turn; the GPU's run is skipped or failed as `gpu` says."""
+    name: Literal["cpu", "gpu"] = request.param
+    if name == "gpu":
+        request.getfixturevalue("gpu")
+    return name
