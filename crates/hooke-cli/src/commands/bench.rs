@@ -576,17 +576,8 @@ fn measure(
     copy_pool: &rayon::ThreadPool,
 ) -> anyhow::Result<Row> {
     let total_ms = median_ms(timed.rounds_ms.clone());
-    let mut phases: Vec<PhaseTimes> = Vec::with_capacity(args.steps as usize);
-    let mut source = TimingSource::WallClock;
-    // In batches, as the fused steps run: the GPU times a batch's steps back to back.
-    let mut left = args.steps;
-    while left > 0 {
-        let batch = left.min(STEPS_PER_SAMPLE);
-        let (times, from) = timed.simulation.steps_timed(batch)?;
-        phases.extend(times);
-        source = from;
-        left -= batch;
-    }
+    // The GPU records them back to back, 10 to a submission, as the fused steps run.
+    let (phases, source) = timed.simulation.steps_timed(args.steps)?;
     let simulation = &mut timed.simulation;
     let timing = match source {
         TimingSource::Timestamps => "gpu timestamps, 10 steps a submission",
