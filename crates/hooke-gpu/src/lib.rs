@@ -27,6 +27,7 @@ pub use methods::{Accumulation, GpuMemory, GpuMethod};
 pub use model::GpuModel;
 pub use solver::GpuSolver;
 pub use state::{GpuState, positions_to_vec4};
+pub use step::TIMED_STEPS_PER_SUBMISSION;
 
 /// The wgpu this crate is built on, for callers that need its types.
 pub use wgpu;

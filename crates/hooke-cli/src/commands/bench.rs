@@ -44,7 +44,7 @@ use hooke_core::selfcollide::{self, PartTimes, SelfCollision};
 use hooke_core::{PhaseTimes, SimError, TimingSource};
 use hooke_cpu::kernels::InstructionSet;
 use hooke_cpu::{CpuOptions, Method};
-use hooke_gpu::{Accumulation, GpuError, GpuMethod};
+use hooke_gpu::{Accumulation, GpuError, GpuMethod, TIMED_STEPS_PER_SUBMISSION};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -138,7 +138,7 @@ struct Row {
     threads: usize,
     /// Where the phase times come from: "wall clock" (cpu, or gpu without timestamps) or "gpu
     /// timestamps, 10 steps a submission".
-    phase_timing: &'static str,
+    phase_timing: String,
     force_calculation_ms: f64,
     force_accumulation_ms: Option<f64>,
     /// None where one pass sums the springs and integrates (the GPU's gather): its force
@@ -580,8 +580,10 @@ fn measure(
     let (phases, source) = timed.simulation.steps_timed(args.steps)?;
     let simulation = &mut timed.simulation;
     let timing = match source {
-        TimingSource::Timestamps => "gpu timestamps, 10 steps a submission",
-        TimingSource::WallClock => "wall clock",
+        TimingSource::Timestamps => {
+            format!("gpu timestamps, {TIMED_STEPS_PER_SUBMISSION} steps a submission")
+        }
+        TimingSource::WallClock => "wall clock".to_owned(),
     };
     // Which phases have passes of their own: the GPU's gather integrates in its force pass,
     // and its atomic accumulations sum there; the CPU times its phases apart.
@@ -968,7 +970,7 @@ mod tests {
             backend: "cpu",
             method: "gather".to_owned(),
             threads: 2,
-            phase_timing: "wall clock",
+            phase_timing: "wall clock".to_owned(),
             force_calculation_ms: 0.0,
             force_accumulation_ms: None,
             integration_ms: None,
