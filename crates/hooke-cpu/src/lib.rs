@@ -274,7 +274,7 @@ impl CpuSolver {
             material: *material,
             control: Control::default(),
             self_collision: model.collision.self_collision,
-            self_collider: selfcollide::Resolver::default(),
+            self_collider: selfcollide::Resolver::grouped_by(model),
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),

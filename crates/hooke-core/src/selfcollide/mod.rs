@@ -621,6 +621,23 @@ impl Resolver {
         moves
     }
 
+    /// A resolver for `model` that groups its vertices as its scene placed them.
+    pub fn grouped_by(model: &Model) -> Self {
+        let mut resolver = Self::default();
+        let layout = model
+            .initial_positions
+            .iter()
+            .map(|p| p.as_vec3())
+            .collect();
+        resolver.group_by(layout);
+        resolver
+    }
+
+    /// Groups the vertices as they lie in `layout` (see [`Culling::group_by`]).
+    pub fn group_by(&mut self, layout: Vec<Vec3>) {
+        self.culling.group_by(layout);
+    }
+
     /// Whether the next steps time their parts ([`Resolver::part_times`]); off at first.
     pub fn time_parts(&mut self, on: bool) {
         self.timing = on;
