@@ -665,14 +665,12 @@ impl Culling {
     /// Patches, their near pairs and the hierarchy, for `points` as they are now.
     fn build<P: Points + ?Sized>(&mut self, points: &P, adjacency: &Adjacency) {
         let n = points.count();
-        let mut positions = Vec::new();
-        if self.layout.len() != n {
-            points.copy_into(&mut positions);
-        }
+        let mut copied = Vec::new();
         let positions = if self.layout.len() == n {
             &self.layout
         } else {
-            &positions
+            points.copy_into(&mut copied);
+            &copied
         };
         let (low, high) = bounds(positions);
         let extent = (high - low).max_element().max(f32::MIN_POSITIVE);
