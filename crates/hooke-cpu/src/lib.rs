@@ -274,7 +274,7 @@ impl CpuSolver {
             material: *material,
             control: Control::default(),
             self_collision: model.collision.self_collision,
-            self_collider: selfcollide::Resolver::grouped_by(model),
+            self_collider: resolver_for(model, model.collision.self_collision),
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),
@@ -875,6 +875,15 @@ fn compute_spring_forces(
     }
 }
 
+/// The self-collision resolver of a solver for `model`: grouping its vertices as the scene
+/// placed them (a copy of the positions) only when `config` turns self-collision on.
+fn resolver_for(model: &Model, config: Option<SelfCollision>) -> selfcollide::Resolver {
+    match config {
+        Some(_) => selfcollide::Resolver::grouped_by(model),
+        None => selfcollide::Resolver::default(),
+    }
+}
+
 impl Solver for CpuSolver {
     fn describe(&self) -> String {
         let mut order = match self.numbering.order {
@@ -920,6 +929,9 @@ impl Solver for CpuSolver {
     }
 
     fn set_self_collision(&mut self, config: Option<SelfCollision>) -> Result<(), SimError> {
+        if self.self_collision.is_none() {
+            self.self_collider = resolver_for(&self.model, config);
+        }
         self.self_collision = config;
         Ok(())
     }
