@@ -242,4 +242,57 @@ mod tests {
         by_points.step(1).expect("stable");
         assert_ne!(patches(&by_points), patches(&fresh));
     }
+
+    #[test]
+    fn a_mesh_placed_in_folds_is_grouped_along_its_surface() {
+        let scene = hooke_testkit::folding_cloth();
+        let flat = &scene.model;
+        let distance = flat
+            .collision
+            .self_collision
+            .expect("self-collision")
+            .distance;
+        // The cloth of the test above folded the same way, but placed so by its model, as a
+        // mesh file holding a folded cloth is: it has no flat layout to group by.
+        let middle = flat.initial_positions.iter().map(|p| p.y).sum::<f64>()
+            / flat.initial_positions.len() as f64;
+        let mut model = flat.clone();
+        for p in &mut model.initial_positions {
+            if p.y > middle {
+                *p = glam::DVec3::new(p.x, 2.0 * middle - p.y, p.z + 0.2 * distance);
+            }
+        }
+        // Patches whose vertices their own springs do not join into one piece: pieces of two
+        // layers, where grouped by where the vertices lie.
+        let split = |solver: &CpuSolver| {
+            let culling = solver.self_collider.culling();
+            let order: Vec<u32> = (0..culling.patch_count() as u32)
+                .flat_map(|p| culling.members_of(p).to_vec())
+                .collect();
+            selfcollide::split_patches(&order, &flat.adjacency)
+        };
+        let options = CpuOptions {
+            threads: Some(2),
+            ..Default::default()
+        };
+        let mut folded = CpuSolver::new(&model, &scene.material, options).expect("cpu solver");
+        folded.step(1).expect("stable");
+        let mut by_points = CpuSolver::new(&model, &scene.material, options).expect("cpu solver");
+        by_points.self_collider = selfcollide::Resolver::default();
+        by_points.step(1).expect("stable");
+        assert_eq!(split(&folded), 0);
+        // Each patch is whole blocks of the solver's, which the culling reads straight from it.
+        let culling = folded.self_collider.culling();
+        for p in 0..culling.patch_count() as u32 {
+            for run in culling.places_of(p).chunks(LANES) {
+                assert_eq!(run[0] as usize % LANES, 0, "patch {p}: {run:?}");
+                assert!(
+                    run.windows(2).all(|w| w[1] == w[0] + 1),
+                    "patch {p}: {run:?}"
+                );
+            }
+        }
+        // Grouped where the points lie instead, patches hold pieces of both layers.
+        assert!(split(&by_points) >= 4, "{}", split(&by_points));
+    }
 }

@@ -262,6 +262,7 @@ impl CpuSolver {
         let numbering = Numbering::new(model, options.order);
         let slices = numbering.slice_count();
         let topology = build_topology(model, &numbering, options.method, material.stiffness_scale);
+        let self_collider = resolver_for(model, &numbering, model.collision.self_collision);
         let mut solver = Self {
             options,
             pool: std::sync::Arc::new(pool),
@@ -274,7 +275,7 @@ impl CpuSolver {
             material: *material,
             control: Control::default(),
             self_collision: model.collision.self_collision,
-            self_collider: resolver_for(model, model.collision.self_collision),
+            self_collider,
             external: None,
             extra_forces: Soa::default(),
             phase_forces: Soa::default(),
@@ -875,11 +876,16 @@ fn compute_spring_forces(
     }
 }
 
-/// The self-collision resolver of a solver for `model`: grouping its vertices as the scene
-/// placed them (a copy of the positions) only when `config` turns self-collision on.
-fn resolver_for(model: &Model, config: Option<SelfCollision>) -> selfcollide::Resolver {
+/// The self-collision resolver of a solver for `model` whose vertices are numbered as
+/// `numbering`: grouping them as the scene placed them (or along the surface, where it placed
+/// them in folds) only when `config` turns self-collision on.
+fn resolver_for(
+    model: &Model,
+    numbering: &Numbering,
+    config: Option<SelfCollision>,
+) -> selfcollide::Resolver {
     match config {
-        Some(_) => selfcollide::Resolver::grouped_by(model),
+        Some(_) => selfcollide::Resolver::grouped_by(model, &numbering.original),
         None => selfcollide::Resolver::default(),
     }
 }
@@ -930,7 +936,7 @@ impl Solver for CpuSolver {
 
     fn set_self_collision(&mut self, config: Option<SelfCollision>) -> Result<(), SimError> {
         if self.self_collision.is_none() {
-            self.self_collider = resolver_for(&self.model, config);
+            self.self_collider = resolver_for(&self.model, &self.numbering, config);
         }
         self.self_collision = config;
         Ok(())

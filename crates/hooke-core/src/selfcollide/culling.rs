@@ -3,9 +3,10 @@
 //! the passes are skipped and the step gives the same bits; when it fails anywhere, they run.
 //!
 //! Vertices are grouped into patches of up to [`PATCH`], close together in the layout the owner
-//! gives ([`Culling::group_by`]: the mesh as its scene placed it), or else where they were
-//! first seen (Morton order of those positions), and the patches are numbered in the order of
-//! the owner's memory (see [`Culling::build`]). Each patch keeps reference positions `R_i`, taken
+//! gives ([`Culling::group_by`]: the mesh as its scene placed it; [`Culling::group_in_order`]:
+//! pieces of its surface, see `along_surface`), or else where they were first seen (Morton
+//! order of those positions), and the patches are numbered in the order of the owner's memory
+//! (see [`Culling::build`]). Each patch keeps reference positions `R_i`, taken
 //! when its shape was last renewed. Each step its vertices' displacements `u_i = x_i - R_i` are
 //! split into a centre `c_P` and a remainder of at most `E_P`; any centre will do, and the
 //! measurement takes whichever of two leaves the smaller `E_P` (where the patch's last step of
@@ -207,8 +208,8 @@ fn refit(nodes: &mut [Node], patches: &[Patch]) {
 pub struct Culling {
     /// Vertex count and adjacency entries it was built for.
     built_for: (usize, usize),
-    /// Positions in mesh order that group the vertices into patches, if given.
-    layout: Vec<Vec3>,
+    /// Every vertex, in an order whose runs of `PATCH` are the patches, if given.
+    order: Vec<u32>,
     /// Every vertex, patch after patch (`PATCH` slots each, the last one shorter).
     members: Vec<u32>,
     /// Where the positions' owner keeps each of `members` ([`Points::place`]).
@@ -398,8 +399,15 @@ impl Culling {
     /// `hooke run --resume` of the bench's 512^2 workload in contact from step 1000 took
     /// 20.2-23.7 ms a step grouped that way, three runs, and 2.2-3.2 grouped by the scene's
     /// layout, with the same bits as one run from the start.)
-    pub fn group_by(&mut self, layout: Vec<Vec3>) {
-        self.layout = layout;
+    pub fn group_by(&mut self, layout: &[Vec3]) {
+        self.group_in_order(morton_order(layout));
+    }
+
+    /// Groups the vertices into patches as they come in `order` (every vertex once; ignored
+    /// while its length is not the points' count), a run of [`PATCH`] each: see
+    /// [`Culling::group_by`], and [`super::patch_order`] for a mesh laid out in folds.
+    pub fn group_in_order(&mut self, order: Vec<u32>) {
+        self.order = order;
         self.built_for = (0, 0);
     }
 
@@ -665,22 +673,13 @@ impl Culling {
     /// Patches, their near pairs and the hierarchy, for `points` as they are now.
     fn build<P: Points + ?Sized>(&mut self, points: &P, adjacency: &Adjacency) {
         let n = points.count();
-        let mut copied = Vec::new();
-        let positions = if self.layout.len() == n {
-            &self.layout
+        self.members = if self.order.len() == n {
+            self.order.clone()
         } else {
-            points.copy_into(&mut copied);
-            &copied
+            let mut positions = Vec::new();
+            points.copy_into(&mut positions);
+            morton_order(&positions)
         };
-        let (low, high) = bounds(positions);
-        let extent = (high - low).max_element().max(f32::MIN_POSITIVE);
-        let mut order: Vec<(u64, u32)> = positions
-            .iter()
-            .enumerate()
-            .map(|(v, &p)| (morton((p - low) / extent), v as u32))
-            .collect();
-        order.par_sort_unstable();
-        self.members = order.into_iter().map(|(_, v)| v).collect();
         // Which vertices make a patch is all that matters; by place, a grid's patch is rows of
         // consecutive places, which the owner may lend a run at a time (`Points::run`).
         self.members
@@ -1469,6 +1468,20 @@ fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
         })
 }
 
+/// The vertices of `positions` in the Morton order of where they lie: each run of [`PATCH`]
+/// is a patch.
+pub(super) fn morton_order(positions: &[Vec3]) -> Vec<u32> {
+    let (low, high) = bounds(positions);
+    let extent = (high - low).max_element().max(f32::MIN_POSITIVE);
+    let mut order: Vec<(u64, u32)> = positions
+        .iter()
+        .enumerate()
+        .map(|(v, &p)| (morton((p - low) / extent), v as u32))
+        .collect();
+    order.par_sort_unstable();
+    order.into_iter().map(|(_, v)| v).collect()
+}
+
 /// Morton code of a point in the unit cube, 21 bits per axis.
 fn morton(unit: Vec3) -> u64 {
     let spread = |x: f32| {
@@ -1712,7 +1725,7 @@ pub(crate) mod tests {
             let mut blocked = Resolver::default();
             // Patches grouped by a layout unlike the points (the script's last step).
             let mut grouped = Resolver::default();
-            grouped.group_by(script(side, spacing, steps, steps, &mut rng.clone()));
+            grouped.group_by(&script(side, spacing, steps, steps, &mut rng.clone()));
             let mut members = Culling::default();
             let start = script(side, spacing, 0, steps, &mut rng.clone());
             members.prove(&start[..], &adjacency, config.distance as f32);

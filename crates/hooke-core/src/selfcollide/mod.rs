@@ -20,6 +20,7 @@
 //! `self_collide.wgsl`, so the CPU and GPU sort the same keys into the same order.
 
 mod ahead;
+mod along_surface;
 mod awake;
 mod binning;
 mod culling;
@@ -36,6 +37,7 @@ use glam::{IVec3, Vec3};
 use rayon::prelude::*;
 
 use ahead::Ahead;
+pub use along_surface::{along_surface, layered_patches, patch_order, split_patches};
 use awake::with_pool_awake;
 use binning::{Binning, Entry, key_of, vertex_of};
 pub use culling::{Culling, Proof};
@@ -621,21 +623,23 @@ impl Resolver {
         moves
     }
 
-    /// A resolver for `model` that groups its vertices as its scene placed them.
-    pub fn grouped_by(model: &Model) -> Self {
+    /// A resolver for `model` that groups its vertices as its scene placed them, or along
+    /// the surface where it placed them in folds ([`patch_order`]; `places` are the vertices
+    /// in the order their positions' owner keeps them, see [`Points::place`]).
+    pub fn grouped_by(model: &Model, places: &[u32]) -> Self {
         let mut resolver = Self::default();
-        let layout = model
-            .initial_positions
-            .iter()
-            .map(|p| p.as_vec3())
-            .collect();
-        resolver.group_by(layout);
+        resolver.group_in_order(patch_order(model, places));
         resolver
     }
 
     /// Groups the vertices as they lie in `layout` (see [`Culling::group_by`]).
-    pub fn group_by(&mut self, layout: Vec<Vec3>) {
+    pub fn group_by(&mut self, layout: &[Vec3]) {
         self.culling.group_by(layout);
+    }
+
+    /// Groups the vertices as they come in `order` (see [`Culling::group_in_order`]).
+    pub fn group_in_order(&mut self, order: Vec<u32>) {
+        self.culling.group_in_order(order);
     }
 
     /// Whether the next steps time their parts ([`Resolver::part_times`]); off at first.
