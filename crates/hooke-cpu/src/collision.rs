@@ -158,7 +158,7 @@ mod tests {
     use super::*;
     use crate::CpuOptions;
     use crate::lanes::Soa;
-    use hooke_core::{Solver, State};
+    use hooke_core::{Model, Solver, State};
 
     #[test]
     fn gather_copies_runs_and_single_points_alike() {
@@ -194,31 +194,35 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_folded_state_written_in_is_grouped_as_the_scene_laid_the_cloth_out() {
-        let scene = hooke_testkit::folding_cloth();
-        let model = &scene.model;
+    /// The folding cloth's initial positions (upright, in x-y) folded in two across the
+    /// middle, the upper half laid a fifth of the self-collision distance in front of the
+    /// lower: grouped where they lie, a patch would hold vertices of both layers.
+    fn folded_in_two(model: &Model) -> Vec<DVec3> {
         let distance = model
             .collision
             .self_collision
             .expect("self-collision")
             .distance;
-        // The cloth (upright, in x-y) folded in two across the middle, the upper half laid a
-        // fifth of the distance in front of the lower: where a folded state's points lie, a
-        // patch would hold vertices of both layers.
         let middle = model.initial_positions.iter().map(|p| p.y).sum::<f64>()
             / model.initial_positions.len() as f64;
-        let folded: Vec<glam::DVec3> = model
+        model
             .initial_positions
             .iter()
             .map(|&p| {
                 if p.y > middle {
-                    glam::DVec3::new(p.x, 2.0 * middle - p.y, p.z + 0.2 * distance)
+                    DVec3::new(p.x, 2.0 * middle - p.y, p.z + 0.2 * distance)
                 } else {
                     p
                 }
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn a_folded_state_written_in_is_grouped_as_the_scene_laid_the_cloth_out() {
+        let scene = hooke_testkit::folding_cloth();
+        let model = &scene.model;
+        let folded = folded_in_two(model);
         let patches = |solver: &CpuSolver| {
             let culling = solver.self_collider.culling();
             (0..culling.patch_count() as u32)
@@ -247,21 +251,10 @@ mod tests {
     fn a_mesh_placed_in_folds_is_grouped_along_its_surface() {
         let scene = hooke_testkit::folding_cloth();
         let flat = &scene.model;
-        let distance = flat
-            .collision
-            .self_collision
-            .expect("self-collision")
-            .distance;
-        // The cloth of the test above folded the same way, but placed so by its model, as a
-        // mesh file holding a folded cloth is: it has no flat layout to group by.
-        let middle = flat.initial_positions.iter().map(|p| p.y).sum::<f64>()
-            / flat.initial_positions.len() as f64;
+        // The cloth folded as in the test above, but placed so by its model, as a mesh file
+        // holding a folded cloth is: it has no flat layout to group by.
         let mut model = flat.clone();
-        for p in &mut model.initial_positions {
-            if p.y > middle {
-                *p = glam::DVec3::new(p.x, 2.0 * middle - p.y, p.z + 0.2 * distance);
-            }
-        }
+        model.initial_positions = folded_in_two(flat);
         // Patches whose vertices their own springs do not join into one piece: pieces of two
         // layers, where grouped by where the vertices lie.
         let split = |solver: &CpuSolver| {
