@@ -5,13 +5,14 @@
 //! mid-fall, a garment's panels laid close) has no flat layout: grouped by where its vertices
 //! lie, a patch holds pieces of two layers, is a pair with itself in contact for good, and its
 //! vertices fill none of the solver's blocks. Such a mesh is grouped instead by halving it
-//! again and again along its springs, each half the side nearer one end of the piece, so
-//! every patch is one piece of the surface.
+//! again and again along its springs, each cut across the piece between two of its ends
+//! where it crosses the fewest springs, so every patch is one piece of the surface.
 //!
 //! What is halved is the owner's blocks ([`LANES`] vertices it keeps side by side), so that
 //! each patch is whole blocks, which the culling reads straight from the owner. A solver
 //! keeps a mesh in the file's order unless that order scatters neighbours, and a file's order
-//! runs along the surface, so its blocks are pieces of one layer.
+//! runs along the surface, so its blocks are pieces of one layer where its rows are whole
+//! blocks; where they are not, the vertices are halved one by one.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -169,7 +170,16 @@ struct UnitGraph<'a> {
     places: &'a [u32],
     unit: usize,
     offsets: Vec<usize>,
-    joins: Vec<(u32, f64)>,
+    joins: Vec<Join>,
+}
+
+/// Two units that springs join: the other unit, the distance between their centres, and how
+/// many springs.
+#[derive(Clone, Copy, Debug)]
+struct Join {
+    unit: u32,
+    length: f64,
+    springs: u32,
 }
 
 impl<'a> UnitGraph<'a> {
@@ -192,20 +202,23 @@ impl<'a> UnitGraph<'a> {
                     / unit as f64
             })
             .collect();
-        let rows: Vec<Vec<(u32, f64)>> = places[..full * unit]
+        let rows: Vec<Vec<Join>> = places[..full * unit]
             .par_chunks(unit)
             .enumerate()
             .map(|(b, block)| {
-                let mut row: Vec<u32> = block
+                let mut ends: Vec<u32> = block
                     .iter()
                     .flat_map(|&v| model.adjacency.neighbors_of(v))
                     .map(|&w| block_of[w as usize])
                     .filter(|&c| c != b as u32 && c != u32::MAX)
                     .collect();
-                row.sort_unstable();
-                row.dedup();
-                row.into_iter()
-                    .map(|c| (c, centres[b].distance(centres[c as usize])))
+                ends.sort_unstable();
+                ends.chunk_by(|a, b| a == b)
+                    .map(|run| Join {
+                        unit: run[0],
+                        length: centres[b].distance(centres[run[0] as usize]),
+                        springs: run.len() as u32,
+                    })
                     .collect()
             })
             .collect();
@@ -227,7 +240,7 @@ impl<'a> UnitGraph<'a> {
         &self.places[b * self.unit..(b + 1) * self.unit]
     }
 
-    fn joins_of(&self, b: u32) -> &[(u32, f64)] {
+    fn joins_of(&self, b: u32) -> &[Join] {
         &self.joins[self.offsets[b as usize]..self.offsets[b as usize + 1]]
     }
 }
@@ -241,8 +254,8 @@ struct Marks {
 }
 
 /// Orders `blocks` (the units at `start..` of the whole order) so that each run of a patch's
-/// worth is a piece of the surface: the units nearer one end of the piece than the other
-/// first, as many as half the patches, then each half the same way.
+/// worth is a piece of the surface: the units on one side of a cut across the piece first,
+/// as many as half the patches, then each half the same way.
 fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
     let len = blocks.len();
     let patch = PATCH / graph.unit;
@@ -259,31 +272,62 @@ fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
         (marks.half[c as usize].load(Ordering::Relaxed) == half)
             .then(|| marks.index[c as usize].load(Ordering::Relaxed) as usize)
     };
-    // The piece's two ends: the farthest unit from any, and the farthest from that.
+    // The piece's two ends: the farthest unit from any, and the farthest from that; then the
+    // two ends across it: the farthest from both, and the farthest from that.
     let farthest = |from: &[f64]| {
         (0..len)
             .filter(|&k| from[k].is_finite())
             .max_by(|&a, &b| from[a].total_cmp(&from[b]))
             .unwrap_or(0)
     };
-    let one_end = farthest(&distances(blocks, 0, &inside, graph));
-    let from_one = distances(blocks, one_end, &inside, graph);
-    let from_other = distances(blocks, farthest(&from_one), &inside, graph);
-    // Nearer the first end first; units of other pieces (not reached) last.
-    let side = |k: usize| {
-        let d = from_one[k] - from_other[k];
-        if d.is_finite() { d } else { f64::INFINITY }
-    };
-    let mut sides: Vec<(f64, u32)> = blocks
-        .iter()
-        .enumerate()
-        .map(|(k, &b)| (side(k), b))
-        .collect();
-    sides.sort_by(|a, b| a.0.total_cmp(&b.0));
-    for (slot, (_, b)) in blocks.iter_mut().zip(sides) {
-        *slot = b;
-    }
+    let a = distances(
+        blocks,
+        farthest(&distances(blocks, 0, &inside, graph)),
+        &inside,
+        graph,
+    );
+    let b = distances(blocks, farthest(&a), &inside, graph);
+    let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x.min(*y)).collect();
+    let c = distances(blocks, farthest(&both), &inside, graph);
+    let d = distances(blocks, farthest(&c), &inside, graph);
+    // Each way across: nearer one end than the other, along the piece, across it, and the two
+    // diagonals between (the diameter of a square runs corner to corner, and a cut across it
+    // leaves triangles). The cut through the fewest springs leaves the roundest halves.
     let middle = len.div_ceil(patch) / 2 * patch;
+    let ways: [&dyn Fn(usize) -> f64; 4] = [
+        &|k| a[k] - b[k],
+        &|k| c[k] - d[k],
+        &|k| (a[k] - b[k]) + (c[k] - d[k]),
+        &|k| (a[k] - b[k]) - (c[k] - d[k]),
+    ];
+    let mut best: Option<(u64, Vec<u32>)> = None;
+    let mut first_half = vec![false; len];
+    for way in ways {
+        // Units of other pieces (not reached) last.
+        let side = |k: usize| {
+            Some(way(k))
+                .filter(|x| x.is_finite())
+                .unwrap_or(f64::INFINITY)
+        };
+        let mut order: Vec<u32> = (0..len as u32).collect();
+        order.sort_by(|&x, &y| side(x as usize).total_cmp(&side(y as usize)));
+        first_half.fill(false);
+        for &k in &order[..middle] {
+            first_half[k as usize] = true;
+        }
+        let cut: u64 = order[..middle]
+            .iter()
+            .flat_map(|&k| graph.joins_of(blocks[k as usize]))
+            .filter(|join| inside(join.unit).is_some_and(|j| !first_half[j]))
+            .map(|join| u64::from(join.springs))
+            .sum();
+        if best.as_ref().is_none_or(|(fewest, _)| cut < *fewest) {
+            best = Some((cut, order));
+        }
+    }
+    let (_, order) = best.expect("four ways");
+    let reordered: Vec<u32> = order.iter().map(|&k| blocks[k as usize]).collect();
+    blocks.copy_from_slice(&reordered);
     let (first, second) = blocks.split_at_mut(middle);
     if len >= PARALLEL_UNITS {
         rayon::join(
@@ -314,10 +358,10 @@ fn distances(
         if d > distance[k as usize] {
             continue;
         }
-        for &(c, length) in graph.joins_of(blocks[k as usize]) {
+        for join in graph.joins_of(blocks[k as usize]) {
             // A join between blocks placed where a position is not finite joins nothing.
-            if let Some(j) = inside(c).filter(|_| length.is_finite()) {
-                let through = d + length;
+            if let Some(j) = inside(join.unit).filter(|_| join.length.is_finite()) {
+                let through = d + join.length;
                 if through < distance[j] {
                     distance[j] = through;
                     heap.push(Reverse((through.to_bits(), j as u32)));
@@ -403,11 +447,10 @@ mod tests {
             assert!(split_patches(&by_place, &model.adjacency) > by_place.len() / PATCH / 2);
             let order = patch_order(&model, &mesh_order(&model));
             assert_eq!(order, along_surface(&model, &mesh_order(&model), unit));
-            // Halves of a piece are not always whole pieces themselves.
-            let split = split_patches(&order, &model.adjacency);
-            assert!(
-                split <= order.len() / PATCH / 4,
-                "{columns} columns: {split}"
+            assert_eq!(
+                split_patches(&order, &model.adjacency),
+                0,
+                "{columns} columns"
             );
         }
     }
@@ -432,7 +475,7 @@ mod tests {
             assert_eq!(order[full..], places[full..], "unit {unit}");
             // Wrapping blocks make pieces of patches in whole blocks (see above).
             if unit == 1 {
-                assert!(split_patches(&order, &model.adjacency) <= order.len() / PATCH / 4);
+                assert_eq!(split_patches(&order, &model.adjacency), 0);
             }
         }
     }
