@@ -62,17 +62,38 @@ pub fn patch_order(model: &Model, places: &[u32]) -> Vec<u32> {
     by_place
 }
 
+/// Where each vertex comes in an order of patches, so that a patch can name its members by a
+/// bit each.
+struct Slots(Vec<u32>);
+
+impl Slots {
+    fn of(order: &[u32]) -> Self {
+        let mut slot = vec![0u32; order.len()];
+        for (k, &v) in order.iter().enumerate() {
+            slot[v as usize] = k as u32;
+        }
+        Self(slot)
+    }
+
+    /// The bit of vertex `w` among the `members` of patch `patch`; zero if not one of them.
+    fn bit_in(&self, w: u32, patch: usize, members: &[u32]) -> u64 {
+        let first = patch * PATCH;
+        let j = self.0[w as usize] as usize;
+        if (first..first + members.len()).contains(&j) {
+            1u64 << (j - first)
+        } else {
+            0
+        }
+    }
+}
+
 /// How many runs of [`PATCH`] in `order` are not joined into one piece by their own springs.
 pub fn split_patches(order: &[u32], adjacency: &Adjacency) -> usize {
-    let mut slot = vec![0u32; order.len()];
-    for (k, &v) in order.iter().enumerate() {
-        slot[v as usize] = k as u32;
-    }
+    let slots = Slots::of(order);
     order
         .par_chunks(PATCH)
         .enumerate()
-        .filter(|(patch, members)| {
-            let first = patch * PATCH;
+        .filter(|&(patch, members)| {
             // The members the first one's piece has reached, a bit each, and those whose
             // springs are still to follow.
             let (mut reached, mut frontier) = (1u64, 1u64);
@@ -80,12 +101,9 @@ pub fn split_patches(order: &[u32], adjacency: &Adjacency) -> usize {
                 let k = frontier.trailing_zeros() as usize;
                 frontier &= frontier - 1;
                 for &w in adjacency.neighbors_of(members[k]) {
-                    let j = slot[w as usize] as usize;
-                    if (first..first + members.len()).contains(&j) {
-                        let bit = 1u64 << (j - first);
-                        frontier |= bit & !reached;
-                        reached |= bit;
-                    }
+                    let bit = slots.bit_in(w, patch, members);
+                    frontier |= bit & !reached;
+                    reached |= bit;
                 }
             }
             reached.count_ones() as usize != members.len()
@@ -98,10 +116,7 @@ pub fn split_patches(order: &[u32], adjacency: &Adjacency) -> usize {
 /// springs joins. (On one layer, a vertex's nearest neighbours are its springs' other ends.)
 pub fn layered_patches(order: &[u32], model: &Model, positions: &[Vec3]) -> usize {
     let adjacency = &model.adjacency;
-    let mut slot = vec![0u32; order.len()];
-    for (k, &v) in order.iter().enumerate() {
-        slot[v as usize] = k as u32;
-    }
+    let slots = Slots::of(order);
     let shortest: Vec<f32> = (0..order.len())
         .map(|v| {
             adjacency
@@ -113,16 +128,8 @@ pub fn layered_patches(order: &[u32], model: &Model, positions: &[Vec3]) -> usiz
     order
         .par_chunks(PATCH)
         .enumerate()
-        .filter(|(patch, members)| {
-            let first = patch * PATCH;
-            let bit_of = |w: u32| {
-                let j = slot[w as usize] as usize;
-                if (first..first + members.len()).contains(&j) {
-                    1u64 << (j - first)
-                } else {
-                    0
-                }
-            };
+        .filter(|&(patch, members)| {
+            let bit_of = |w: u32| slots.bit_in(w, patch, members);
             members.iter().enumerate().any(|(k, &u)| {
                 let mut near = 1u64 << k;
                 for &w in adjacency.neighbors_of(u) {
@@ -186,16 +193,16 @@ impl<'a> UnitGraph<'a> {
     fn new(model: &Model, places: &'a [u32], unit: usize) -> Self {
         let n = model.vertex_count();
         let full = places.len() / unit;
-        let mut block_of = vec![u32::MAX; n];
-        for (b, block) in places[..full * unit].chunks(unit).enumerate() {
-            for &v in block {
-                block_of[v as usize] = b as u32;
+        let mut unit_of = vec![u32::MAX; n];
+        for (b, members) in places[..full * unit].chunks(unit).enumerate() {
+            for &v in members {
+                unit_of[v as usize] = b as u32;
             }
         }
         let centres: Vec<DVec3> = places[..full * unit]
             .chunks(unit)
-            .map(|block| {
-                block
+            .map(|members| {
+                members
                     .iter()
                     .map(|&v| model.initial_positions[v as usize])
                     .sum::<DVec3>()
@@ -205,11 +212,11 @@ impl<'a> UnitGraph<'a> {
         let rows: Vec<Vec<Join>> = places[..full * unit]
             .par_chunks(unit)
             .enumerate()
-            .map(|(b, block)| {
-                let mut ends: Vec<u32> = block
+            .map(|(b, members)| {
+                let mut ends: Vec<u32> = members
                     .iter()
                     .flat_map(|&v| model.adjacency.neighbors_of(v))
-                    .map(|&w| block_of[w as usize])
+                    .map(|&w| unit_of[w as usize])
                     .filter(|&c| c != b as u32 && c != u32::MAX)
                     .collect();
                 ends.sort_unstable();
@@ -253,18 +260,18 @@ struct Marks {
     index: Vec<AtomicU32>,
 }
 
-/// Orders `blocks` (the units at `start..` of the whole order) so that each run of a patch's
+/// Orders `units` (those at `start..` of the whole order) so that each run of a patch's
 /// worth is a piece of the surface: the units on one side of a cut across the piece first,
 /// as many as half the patches, then each half the same way.
-fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
-    let len = blocks.len();
+fn halve(units: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
+    let len = units.len();
     let patch = PATCH / graph.unit;
     if len <= patch {
         return;
     }
     // A half is its start and length: no two halves alive at once share both.
     let half = (start as u64) << 32 | len as u64;
-    for (k, &b) in blocks.iter().enumerate() {
+    for (k, &b) in units.iter().enumerate() {
         marks.half[b as usize].store(half, Ordering::Relaxed);
         marks.index[b as usize].store(k as u32, Ordering::Relaxed);
     }
@@ -281,15 +288,15 @@ fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
             .unwrap_or(0)
     };
     let a = distances(
-        blocks,
-        farthest(&distances(blocks, 0, &inside, graph)),
+        units,
+        farthest(&distances(units, 0, &inside, graph)),
         &inside,
         graph,
     );
-    let b = distances(blocks, farthest(&a), &inside, graph);
+    let b = distances(units, farthest(&a), &inside, graph);
     let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x.min(*y)).collect();
-    let c = distances(blocks, farthest(&both), &inside, graph);
-    let d = distances(blocks, farthest(&c), &inside, graph);
+    let c = distances(units, farthest(&both), &inside, graph);
+    let d = distances(units, farthest(&c), &inside, graph);
     // Each way across: nearer one end than the other, along the piece, across it, and the two
     // diagonals between (the diameter of a square runs corner to corner, and a cut across it
     // leaves triangles). The cut through the fewest springs leaves the roundest halves.
@@ -317,7 +324,7 @@ fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
         }
         let cut: u64 = order[..middle]
             .iter()
-            .flat_map(|&k| graph.joins_of(blocks[k as usize]))
+            .flat_map(|&k| graph.joins_of(units[k as usize]))
             .filter(|join| inside(join.unit).is_some_and(|j| !first_half[j]))
             .map(|join| u64::from(join.springs))
             .sum();
@@ -326,9 +333,9 @@ fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
         }
     }
     let (_, order) = best.expect("four ways");
-    let reordered: Vec<u32> = order.iter().map(|&k| blocks[k as usize]).collect();
-    blocks.copy_from_slice(&reordered);
-    let (first, second) = blocks.split_at_mut(middle);
+    let reordered: Vec<u32> = order.iter().map(|&k| units[k as usize]).collect();
+    units.copy_from_slice(&reordered);
+    let (first, second) = units.split_at_mut(middle);
     if len >= PARALLEL_UNITS {
         rayon::join(
             || halve(first, start, marks, graph),
@@ -340,15 +347,15 @@ fn halve(blocks: &mut [u32], start: usize, marks: &Marks, graph: &UnitGraph) {
     }
 }
 
-/// The length of the shortest path of joins from `blocks[from]` to each of the units `blocks` that
-/// `inside` finds within them (infinite where none), by Dijkstra's search.
+/// The length of the shortest path of joins from `units[from]` to each of `units` that
+/// `inside` finds among them (infinite where none), by Dijkstra's search.
 fn distances(
-    blocks: &[u32],
+    units: &[u32],
     from: usize,
     inside: &impl Fn(u32) -> Option<usize>,
     graph: &UnitGraph,
 ) -> Vec<f64> {
-    let mut distance = vec![f64::INFINITY; blocks.len()];
+    let mut distance = vec![f64::INFINITY; units.len()];
     // Lengths are at least zero, so their bits order as they do.
     let mut heap = BinaryHeap::new();
     distance[from] = 0.0;
@@ -358,8 +365,8 @@ fn distances(
         if d > distance[k as usize] {
             continue;
         }
-        for join in graph.joins_of(blocks[k as usize]) {
-            // A join between blocks placed where a position is not finite joins nothing.
+        for join in graph.joins_of(units[k as usize]) {
+            // A join between units placed where a position is not finite joins nothing.
             if let Some(j) = inside(join.unit).filter(|_| join.length.is_finite()) {
                 let through = d + join.length;
                 if through < distance[j] {

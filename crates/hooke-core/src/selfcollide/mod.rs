@@ -628,18 +628,13 @@ impl Resolver {
     /// in the order their positions' owner keeps them, see [`Points::place`]).
     pub fn grouped_by(model: &Model, places: &[u32]) -> Self {
         let mut resolver = Self::default();
-        resolver.group_in_order(patch_order(model, places));
+        resolver.culling.group_in_order(patch_order(model, places));
         resolver
     }
 
     /// Groups the vertices as they lie in `layout` (see [`Culling::group_by`]).
     pub fn group_by(&mut self, layout: &[Vec3]) {
         self.culling.group_by(layout);
-    }
-
-    /// Groups the vertices as they come in `order` (see [`Culling::group_in_order`]).
-    pub fn group_in_order(&mut self, order: Vec<u32>) {
-        self.culling.group_in_order(order);
     }
 
     /// Whether the next steps time their parts ([`Resolver::part_times`]); off at first.
