@@ -7,6 +7,52 @@ use rayon::prelude::*;
 
 use crate::CpuSolver;
 use crate::layout::LANES;
+use crate::simd::{Point, point_slot};
+
+/// A step's new positions as the solver keeps them, lent to self-collision: by axis in blocks
+/// of [`LANES`], and as one 16-byte point per vertex where the integration wrote them (the
+/// force pass of an irregular mesh reads them). A patch that fills none of the solver's blocks
+/// (an irregular mesh's slices hold vertices of like valence from a window of 256) is then
+/// read a point at a time with one load, not one from each axis.
+struct SolverPoints<'a> {
+    blocks: selfcollide::BlockPoints<'a>,
+    points: Option<&'a [[Point; LANES]]>,
+}
+
+impl selfcollide::Points for SolverPoints<'_> {
+    fn count(&self) -> usize {
+        self.blocks.count()
+    }
+
+    fn place(&self, v: u32) -> u32 {
+        self.blocks.place(v)
+    }
+
+    fn at(&self, place: u32) -> Vec3 {
+        match self.points {
+            Some(points) => {
+                let block = &points[place as usize / LANES];
+                Vec3::from_slice(&block[point_slot(place) as usize % LANES])
+            }
+            None => self.blocks.at(place),
+        }
+    }
+
+    fn lanes(&self, place: u32) -> Option<[&[f32; LANES]; 3]> {
+        self.blocks.lanes(place)
+    }
+
+    fn gather_into(&self, places: &[u32], [xs, ys, zs]: [&mut [f32]; 3]) {
+        let Some(points) = self.points else {
+            return self.blocks.gather_into(places, [xs, ys, zs]);
+        };
+        let points = points.as_flattened();
+        let outs = xs.iter_mut().zip(ys.iter_mut()).zip(zs.iter_mut());
+        for (((x, y), z), &place) in outs.zip(places) {
+            [*x, *y, *z, _] = points[point_slot(place) as usize];
+        }
+    }
+}
 
 impl CpuSolver {
     /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
@@ -15,10 +61,14 @@ impl CpuSolver {
     pub(crate) fn self_collide(&mut self, timed: bool) -> Option<selfcollide::PartTimes> {
         let config = self.self_collision?;
         self.self_collider.time_parts(timed);
-        // The step's new positions, where the solver keeps them (its numbering, by axis).
-        let points = selfcollide::BlockPoints {
-            places: &self.numbering.internal,
-            axes: self.next.axes(),
+        // The step's new positions, where the solver keeps them (its numbering, by axis, and
+        // as points where the integration wrote them).
+        let points = SolverPoints {
+            blocks: selfcollide::BlockPoints {
+                places: &self.numbering.internal,
+                axes: self.next.axes(),
+            },
+            points: self.points_fresh.then_some(self.points.as_slice()),
         };
         let moves = self.self_collider.resolve(
             &points,
@@ -29,12 +79,16 @@ impl CpuSolver {
         // Only moved vertices are written back; each move shifts the step's motion too.
         let mut watch = selfcollide::Stopwatch::start(timed);
         let internal = &self.numbering.internal;
+        let mut points = self.points_fresh.then_some(self.points.as_flattened_mut());
         for (v, c) in moves {
             let k = internal[v as usize] as usize;
-            self.next
-                .set(k, (Vec3::from_array(self.next.get(k)) + c).to_array());
+            let moved = Vec3::from_array(self.next.get(k)) + c;
+            self.next.set(k, moved.to_array());
             self.delta
                 .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
+            if let Some(points) = points.as_deref_mut() {
+                points[point_slot(k as u32) as usize] = moved.extend(0.0).to_array();
+            }
         }
         let mut parts = self.self_collider.part_times();
         parts.moving += watch.lap();

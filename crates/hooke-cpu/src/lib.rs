@@ -170,7 +170,8 @@ pub struct CpuSolver {
     /// Receives `x(t + dt)` as points from the integration; swapped with `points`.
     next_points: Vec<[Point; LANES]>,
     /// Whether `points` holds `x(t)`: the integration wrote them and nothing moved a vertex
-    /// after it (colliders, handles, self-collision) or since (`write_state`).
+    /// after it but self-collision, which moves them too (colliders and handles do not), or
+    /// since (`write_state`).
     points_fresh: bool,
     /// Receives `x(t + dt)`; swapped with `current` after each step.
     next: Soa,
@@ -693,9 +694,10 @@ impl CpuSolver {
     }
 
     /// Whether the integration should write the next positions as points: the force pass reads
-    /// them, and nothing will move a vertex after the integration.
+    /// them, and nothing but self-collision will move a vertex after the integration
+    /// (self-collision moves them in the points too, see `self_collide`, and reads them).
     fn writes_points(&self) -> bool {
-        self.reads_points && self.positions_final_after_integration()
+        self.reads_points && self.colliders.is_empty() && self.model.handles.is_empty()
     }
 
     /// After an integration: the points it wrote (if it did) are the next step's.

@@ -685,3 +685,59 @@ fn a_ball_leaving_the_numbers_is_reported_with_step_and_collider() {
         assert!(error.to_string().contains("collider 0"));
     }
 }
+
+/// On an irregular mesh the force pass reads the positions as points, which the integration
+/// writes for the next step; self-collision reads them too and moves its vertices in them as
+/// in the axes. Stepping on gives the same bits as writing the state back after every step
+/// (which has the solver copy the points from the axes afresh), with many vertices moved.
+#[test]
+fn self_collision_moves_the_points_an_irregular_mesh_reads() {
+    use hooke_core::selfcollide::SelfCollision;
+    let vertices = 3000;
+    let mut scene = benchmark_scene(irregular_section(vertices), vertices);
+    let config = SelfCollision::for_model(&scene.model);
+    scene.model.collision.self_collision = Some(config);
+    // Folded in two across x = 0, the folded half half a distance above the other.
+    let lift = 0.5 * config.distance;
+    let positions: Vec<DVec3> = scene
+        .model
+        .initial_positions
+        .iter()
+        .map(|p| {
+            if p.x > 0.0 {
+                DVec3::new(-p.x, p.y + lift, p.z)
+            } else {
+                *p
+            }
+        })
+        .collect();
+    let folded = State {
+        previous_positions: positions.clone(),
+        positions,
+    };
+    let steps = 10;
+    for method in Method::ALL {
+        let mut on = cpu(&scene, method, 2);
+        on.write_state(&folded);
+        on.step(steps).expect("stable");
+        let mut written = cpu(&scene, method, 2);
+        written.write_state(&folded);
+        for _ in 0..steps {
+            written.step(1).expect("stable");
+            let state = state_of(&written);
+            written.write_state(&state);
+        }
+        assert!(state_of(&on) == state_of(&written), "{method:?}");
+        let mut plain = cpu(&scene, method, 2);
+        plain.set_self_collision(None).expect("off");
+        plain.write_state(&folded);
+        plain.step(steps).expect("stable");
+        let moved = state_of(&plain)
+            .positions
+            .iter()
+            .zip(&state_of(&on).positions)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(moved > 500, "{method:?}: only {moved} vertices moved");
+    }
+}
