@@ -171,7 +171,7 @@ impl NearPair {
     }
 }
 
-/// Steps between looks for adopted pairs whose patches have parted.
+/// Proofs between looks for adopted pairs whose patches have parted.
 const PARTING_EVERY: u64 = 16;
 
 /// How far apart an adopted pair's boxes must be, as a multiple of the distance plus the
