@@ -30,10 +30,7 @@ impl selfcollide::Points for SolverPoints<'_> {
 
     fn at(&self, place: u32) -> Vec3 {
         match self.points {
-            Some(points) => {
-                let block = &points[place as usize / LANES];
-                Vec3::from_slice(&block[point_slot(place) as usize % LANES])
-            }
+            Some(points) => Vec3::from_slice(&points.as_flattened()[point_slot(place) as usize]),
             None => self.blocks.at(place),
         }
     }

@@ -398,7 +398,13 @@ impl CpuSolver {
     /// Whether every vertex stays where the integration puts it (no colliders, handles or
     /// self-collision), so the points it writes are the next step's positions.
     fn positions_final_after_integration(&self) -> bool {
-        self.colliders.is_empty() && self.model.handles.is_empty() && self.self_collision.is_none()
+        self.no_colliders_or_handles() && self.self_collision.is_none()
+    }
+
+    /// Whether no collider or handle moves a vertex after the integration (self-collision
+    /// still may).
+    fn no_colliders_or_handles(&self) -> bool {
+        self.colliders.is_empty() && self.model.handles.is_empty()
     }
 
     /// Steps that `step(n)` advances per sweep over memory at most (see `sweep`): 2 to 6 on a
@@ -697,7 +703,7 @@ impl CpuSolver {
     /// them, and nothing but self-collision will move a vertex after the integration
     /// (self-collision moves them in the points too, see `self_collide`, and reads them).
     fn writes_points(&self) -> bool {
-        self.reads_points && self.colliders.is_empty() && self.model.handles.is_empty()
+        self.reads_points && self.no_colliders_or_handles()
     }
 
     /// After an integration: the points it wrote (if it did) are the next step's.

@@ -22,7 +22,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::LANES;
-use super::culling::{PATCH, morton_order};
+use super::culling::{PATCH, morton_order, slots_in};
 use crate::{Adjacency, Model};
 
 /// Share of patches, grouped by where the vertices lie, that may hold two layers in contact
@@ -68,11 +68,7 @@ struct Slots(Vec<u32>);
 
 impl Slots {
     fn of(order: &[u32]) -> Self {
-        let mut slot = vec![0u32; order.len()];
-        for (k, &v) in order.iter().enumerate() {
-            slot[v as usize] = k as u32;
-        }
-        Self(slot)
+        Self(slots_in(order))
     }
 
     /// The bit of vertex `w` among the `members` of patch `patch`; zero if not one of them.

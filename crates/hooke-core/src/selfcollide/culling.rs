@@ -720,10 +720,7 @@ impl Culling {
             .par_chunks_mut(PATCH)
             .for_each(|members| members.sort_unstable_by_key(|&v| points.place(v)));
         let morton_order = self.number_by_place(points);
-        self.slot_of = vec![0u32; n];
-        for (slot, &v) in self.members.iter().enumerate() {
-            self.slot_of[v as usize] = slot as u32;
-        }
+        self.slot_of = slots_in(&self.members);
         let slot_of = &self.slot_of;
         self.joined_offsets = std::iter::once(0)
             .chain(self.members.iter().scan(0, |end, &v| {
@@ -1006,7 +1003,7 @@ impl Culling {
         while k < self.near.len() {
             let [p, q] = self.near[k].patches;
             let (a, b) = (&patches[p as usize], &patches[q as usize]);
-            if (a.low - b.high).max(b.low - a.high).max_element() >= apart {
+            if box_gap((a.low, a.high), (b.low, b.high)) >= apart {
                 let row = &mut adopted[p as usize];
                 if let Some(at) = row.iter().position(|&r| r == q) {
                     row.swap_remove(at);
@@ -1108,8 +1105,7 @@ impl Culling {
         found: &mut Vec<([u32; 2], Measured)>,
     ) {
         let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
-        let gaps = (na.low - nb.high).max(nb.low - na.high);
-        if gaps.max_element() >= check.suspect_at {
+        if box_gap((na.low, na.high), (nb.low, nb.high)) >= check.suspect_at {
             return;
         }
         // Split the larger node (a single patch cannot be).
@@ -1422,6 +1418,21 @@ fn measure_patch_with(
     }
     let scale = patch.low.abs().max(patch.high.abs()).max_element();
     Some(scale.max(patch.reference_scale))
+}
+
+/// How far apart two boxes are along the axis that parts them most (negative where they
+/// overlap on every axis): no point of one is closer than that to a point of the other.
+fn box_gap((low_a, high_a): (Vec3, Vec3), (low_b, high_b): (Vec3, Vec3)) -> f32 {
+    (low_a - high_b).max(low_b - high_a).max_element()
+}
+
+/// Each vertex's index in `order` (every vertex once).
+pub(super) fn slots_in(order: &[u32]) -> Vec<u32> {
+    let mut slots = vec![0u32; order.len()];
+    for (slot, &v) in order.iter().enumerate() {
+        slots[v as usize] = slot as u32;
+    }
+    slots
 }
 
 /// Whether every value of `frame` is finite.
@@ -2252,7 +2263,7 @@ pub(crate) mod tests {
         };
         let apart = |culling: &Culling, [p, q]: [u32; 2]| {
             let (a, b) = (&culling.patches[p as usize], &culling.patches[q as usize]);
-            (a.low - b.high).max(b.low - a.high).max_element()
+            box_gap((a.low, a.high), (b.low, b.high))
         };
         let mut folded = Vec::new();
         for positions in frames.iter().chain(frames.iter().rev()) {
