@@ -1315,12 +1315,16 @@ impl Culling {
                     // The slots of `q` that the vertex is itself or joined to, a bit each.
                     let itself = if p == q { 1u64 << k } else { 0 };
                     let joined = itself | self.joined_in(first + k, q);
+                    // A patch paired with itself would meet each pair of its slots twice,
+                    // from either end: a slot is measured against the rows of 8 from its own
+                    // on, which still meets each pair `i < j` from `i`.
+                    let from = if p == q { k / 8 } else { 0 };
                     // The smallest over 8 lanes, each folding every 8th slot: 8 slots at a
                     // time in one vector register, where a fold over all 64 in order ran a
                     // slot at a time.
                     let x = point_of(&mine, k);
                     let mut lanes = [f32::INFINITY; 8];
-                    for c in 0..PATCH / 8 {
+                    for c in from..PATCH / 8 {
                         let bits = (joined >> (8 * c)) as u32;
                         for (l, lane) in lanes.iter_mut().enumerate() {
                             let j = 8 * c + l;
