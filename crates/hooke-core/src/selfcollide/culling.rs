@@ -1189,11 +1189,12 @@ impl Culling {
         let ([first, second], split_a) = match (na.children, nb.children) {
             (None, None) => {
                 let (p, q) = (na.first.min(nb.first), na.first.max(nb.first));
-                if self.near(p, q) {
-                } else if box_gap((na.low, na.high), (nb.low, nb.high)) >= reach {
-                    stops.push([a, b]);
-                } else {
-                    close.push([p, q]);
+                if !self.near(p, q) {
+                    if box_gap((na.low, na.high), (nb.low, nb.high)) >= reach {
+                        stops.push([a, b]);
+                    } else {
+                        close.push([p, q]);
+                    }
                 }
                 return;
             }
