@@ -205,6 +205,13 @@ struct Node {
     high: Vec3,
 }
 
+impl Node {
+    /// How far its box lies from `other`'s (see [`box_gap`]).
+    fn gap(&self, other: &Node) -> f32 {
+        box_gap((self.low, self.high), (other.low, other.high))
+    }
+}
+
 /// Fits the boxes of the subtree whose root is `nodes[0]` (the nodes are in depth-first
 /// order, so a subtree's are a run: the root, then its first half's, then its second's) around
 /// its patches' boxes. Subtrees of [`PARALLEL_PATCHES`] or more patches fit their halves side
@@ -272,14 +279,14 @@ pub struct Culling {
     /// Each patch's adopted near patches numbered above it (a pair is listed under its
     /// lower patch).
     adopted: Vec<Vec<u32>>,
-    /// Proofs since the culling was built.
+    /// Proofs so far.
     proofs: u64,
     /// Pairs of the hierarchy's nodes that together hold every pair of patches that is not
     /// near, each pair of patches under one of them: see [`Culling::far_pairs`].
     frontier: Vec<[u32; 2]>,
     /// How long `frontier` was after the last walk of the whole hierarchy; `None` until one.
     walked: Option<usize>,
-    /// Walks of the whole hierarchy since the culling was built.
+    /// Walks of the whole hierarchy so far.
     pub walks: u64,
     /// Each patch's leaf in `nodes`.
     leaf_of: Vec<u32>,
@@ -1122,16 +1129,11 @@ impl Culling {
         } else {
             let mut further = Vec::new();
             frontier.retain(|&[a, b]| {
-                let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
-                if box_gap((na.low, na.high), (nb.low, nb.high)) >= reach {
-                    return true;
-                }
-                if na.children.is_none() && nb.children.is_none() {
-                    close.push([na.first.min(nb.first), na.first.max(nb.first)]);
-                } else {
+                let within = self.nodes[a as usize].gap(&self.nodes[b as usize]) < reach;
+                if within {
                     self.search_between(a, b, reach, &mut further, &mut close);
                 }
-                false
+                !within
             });
             frontier.append(&mut further);
         }
@@ -1185,12 +1187,13 @@ impl Culling {
         close: &mut Vec<[u32; 2]>,
     ) {
         let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+        let apart = na.gap(nb) >= reach;
         // Split the larger node (a single patch cannot be).
         let ([first, second], split_a) = match (na.children, nb.children) {
             (None, None) => {
                 let (p, q) = (na.first.min(nb.first), na.first.max(nb.first));
                 if !self.near(p, q) {
-                    if box_gap((na.low, na.high), (nb.low, nb.high)) >= reach {
+                    if apart {
                         stops.push([a, b]);
                     } else {
                         close.push([p, q]);
@@ -1198,7 +1201,7 @@ impl Culling {
                 }
                 return;
             }
-            _ if box_gap((na.low, na.high), (nb.low, nb.high)) >= reach => {
+            _ if apart => {
                 stops.push([a, b]);
                 return;
             }
