@@ -348,14 +348,9 @@ pub struct Resolver {
     culling: Culling,
     /// The step's positions in mesh order, copied only when full passes run.
     positions: Vec<Vec3>,
-    /// What local passes sort: the suspects and the vertices that may share a cell with one.
+    /// What local passes sort: the suspects and the vertices that may share a cell with one,
+    /// and how far each has moved this step.
     nearby: Nearby,
-    /// How far each vertex has moved this step (the sum of its moves' lengths), m, and the
-    /// vertices that have.
-    travelled: Vec<f32>,
-    movers: Vec<u32>,
-    /// How far each vertex had travelled when it last widened the suspects, m.
-    widened_at: Vec<f32>,
     /// Passes that tested only suspect vertices.
     local_passes: u64,
     /// Steps with more suspects than one vertex in this many run the full passes.
@@ -381,9 +376,6 @@ impl Default for Resolver {
             culling: Culling::default(),
             positions: Vec::new(),
             nearby: Nearby::default(),
-            travelled: Vec::new(),
-            movers: Vec::new(),
-            widened_at: Vec::new(),
             local_passes: 0,
             local_at_most: LOCAL_AT_MOST,
             local_key_bits: key_bits,
@@ -467,8 +459,6 @@ impl Resolver {
         mut local: bool,
     ) -> Vec<(u32, Vec3)> {
         let n = points.count();
-        self.travelled.resize(n, 0.0);
-        self.widened_at.resize(n, 0.0);
         if local {
             self.nearby.begin(n, self.culling.patch_count());
         }
@@ -488,8 +478,7 @@ impl Resolver {
                 }
                 let moves = self.local_pass(weights, adjacency, config, k);
                 let mut watch = Stopwatch::start(self.timing);
-                self.nearby.apply(&moves);
-                self.widen_past_movers(&moves, points);
+                let moves = self.apply_local(moves, points);
                 self.parts.moving += watch.lap();
                 moves
             } else {
@@ -519,10 +508,6 @@ impl Resolver {
         }
         self.nearby.clear();
         self.ahead.clear();
-        for v in self.movers.drain(..) {
-            self.travelled[v as usize] = 0.0;
-            self.widened_at[v as usize] = 0.0;
-        }
         if tried && local {
             self.backoff = 0;
         } else if tried {
@@ -534,27 +519,28 @@ impl Resolver {
         all_moves
     }
 
-    /// Counts each move into its vertex's travel, and widens the suspects around every vertex
-    /// that has now travelled further than the margin since the proof or since it last
-    /// widened them (a tenth of it is left for rounding). A widening reaches a margin further
-    /// than the distance, so a vertex widens again only after travelling that much more:
-    /// most vertices that widen go on moving in the later passes, and widening after every
-    /// move took a twentieth of a 512^2 step's self-collision in contact.
-    fn widen_past_movers<P: Points + ?Sized>(&mut self, moves: &[(u32, Vec3)], points: &P) {
+    /// Applies a local pass's moves (by slot of the nearby vertices) to the nearby vertices,
+    /// and returns them by mesh vertex. Each move counts into its vertex's travel, and every
+    /// vertex that has now travelled further than the margin since the proof or since it last
+    /// widened the suspects widens them around it (a tenth of the margin is left for
+    /// rounding). A widening reaches a margin further than the distance, so a vertex widens
+    /// again only after travelling that much more: most vertices that widen go on moving in
+    /// the later passes, and widening after every move took a twentieth of a 512^2 step's
+    /// self-collision in contact.
+    fn apply_local<P: Points + ?Sized>(
+        &mut self,
+        moves: Vec<(u32, Vec3)>,
+        points: &P,
+    ) -> Vec<(u32, Vec3)> {
         let limit = 0.9 * self.culling.margin();
-        for &(v, c) in moves {
-            let travelled = &mut self.travelled[v as usize];
-            if *travelled == 0.0 {
-                self.movers.push(v);
-            }
-            *travelled += c.length();
-            if *travelled - self.widened_at[v as usize] >= limit {
-                self.widened_at[v as usize] = *travelled;
-                let point = self.nearby.position(v);
-                self.culling.widen(point, points);
-                self.nearby.moved_far(point);
-            }
-        }
+        let culling = &mut self.culling;
+        self.nearby
+            .apply(&moves, limit, |point| culling.widen(point, points));
+        let vertices = self.nearby.vertices();
+        moves
+            .into_iter()
+            .map(|(slot, c)| (vertices[slot as usize], c))
+            .collect()
     }
 
     /// Sorts the nearby vertices by every grid's keys at once, a grid a thread, for the local
@@ -575,7 +561,8 @@ impl Resolver {
         (self.local_key_bits)(self.nearby.vertices().len())
     }
 
-    /// Grid `k`'s pass over the nearby vertices, testing the suspects.
+    /// Grid `k`'s pass over the nearby vertices, testing the suspects: its moves, by slot of
+    /// the nearby vertices.
     fn local_pass(
         &mut self,
         weights: &[f32],
@@ -593,7 +580,7 @@ impl Resolver {
         let (vertices, positions) = (nearby.vertices(), nearby.positions());
         let suspects = nearby.suspects();
         let keys = GridKeys::with_bits(self.local_bits(), config, k);
-        let moved = self.movers.iter().map(|&v| nearby.slot(v));
+        let moved = nearby.movers().iter().copied();
         let mut watch = Stopwatch::start(self.timing);
         let flags = (suspects, nearby.flagged());
         let sorted = match self.ahead.order(k as usize, positions, flags, moved, &keys) {
@@ -723,9 +710,9 @@ struct Pass<'a> {
 }
 
 impl Pass<'_> {
-    /// The moves, in sorted order: each entry of `sorted` that `tested` names pushed away from
-    /// the unjoined vertices of its window closer than the distance. `vertex` gives an entry's
-    /// mesh vertex (entries index [`Pass::positions`]).
+    /// The moves, in sorted order, each by the entry's index in [`Pass::positions`]: each
+    /// entry of `sorted` that `tested` names pushed away from the unjoined vertices of its
+    /// window closer than the distance. `vertex` gives an entry's mesh vertex.
     fn moves(
         &self,
         sorted: &[Entry],
@@ -760,7 +747,7 @@ impl Pass<'_> {
                     // A pinned vertex does not move (its weight is read only now: most
                     // vertices have no close pair).
                     if correction != Vec3::ZERO && self.weights[p as usize] > 0.0 {
-                        moves.push((p, correction));
+                        moves.push((e, correction));
                     }
                 }
                 moves

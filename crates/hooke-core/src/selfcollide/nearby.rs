@@ -16,6 +16,14 @@ use super::culling::PATCH;
 use super::disjoint::Disjoint;
 use super::{Culling, Points};
 
+/// How far a vertex has travelled this step (the sum of its moves' lengths), and how far it
+/// had when it last widened the suspects, m.
+#[derive(Clone, Copy, Debug, Default)]
+struct Travel {
+    travelled: f32,
+    widened_at: f32,
+}
+
 /// A local step's vertices, kept by the resolver so a step allocates nothing.
 #[derive(Debug, Default)]
 pub(super) struct Nearby {
@@ -32,6 +40,14 @@ pub(super) struct Nearby {
     flagged: Vec<u32>,
     /// The positions before the last [`Nearby::gather`], kept for the next.
     earlier_positions: Vec<Vec3>,
+    /// How far each has travelled this step, in the same order (zero but at `movers`), and
+    /// the slots of those that have: kept by slot, beside the positions a move writes, where
+    /// they were kept by mesh vertex, each move reading and writing arrays of the whole mesh
+    /// at random addresses.
+    travels: Vec<Travel>,
+    movers: Vec<u32>,
+    /// The movers' travels by vertex while [`Nearby::gather`] renumbers the slots.
+    carried: Vec<(u32, Travel)>,
     /// Each mesh vertex's index in `vertices`, `u32::MAX` for the others.
     slots: Vec<u32>,
     /// `vertices` as a bit per mesh vertex (what `gather` lists in order).
@@ -66,6 +82,10 @@ impl Nearby {
         for &p in &self.covered_list {
             self.covered[p as usize] = false;
         }
+        for &slot in &self.movers {
+            self.travels[slot as usize] = Travel::default();
+        }
+        self.movers.clear();
         self.vertices.clear();
         self.positions.clear();
         self.suspects.clear();
@@ -141,6 +161,13 @@ impl Nearby {
     /// thread). Listed on one thread, this was three quarters of the covering's time.
     fn gather<P: Points + ?Sized>(&mut self, culling: &Culling, points: &P, first_new: usize) {
         std::mem::swap(&mut self.positions, &mut self.earlier_positions);
+        // The movers' travels go with their vertices to their new slots (only they are not
+        // zero), read out here while the old slots hold.
+        self.carried.clear();
+        for slot in self.movers.drain(..) {
+            let travel = std::mem::take(&mut self.travels[slot as usize]);
+            self.carried.push((self.vertices[slot as usize], travel));
+        }
         // Marks in the words before each word: a vertex's slot is that plus the marks below
         // it in its own word.
         self.ranks.clear();
@@ -165,6 +192,7 @@ impl Nearby {
         let vertices = Disjoint::new(&mut self.vertices);
         let positions = Disjoint::new(&mut self.positions);
         let suspects = Disjoint::new(&mut self.suspects);
+
         self.covered_list
             .par_iter()
             .enumerate()
@@ -214,6 +242,12 @@ impl Nearby {
                     slots.write(v as usize, slot as u32)
                 };
             });
+        self.travels.resize(total, Travel::default());
+        for &(v, travel) in &self.carried {
+            let slot = self.slots[v as usize];
+            self.travels[slot as usize] = travel;
+            self.movers.push(slot);
+        }
     }
 
     /// The vertices, ascending.
@@ -237,21 +271,37 @@ impl Nearby {
         &self.flagged
     }
 
-    /// Moves the vertices of `moves` (every one of them covered).
-    pub fn apply(&mut self, moves: &[(u32, Vec3)]) {
-        for &(v, c) in moves {
-            self.positions[self.slots[v as usize] as usize] += c;
+    /// Moves the vertices at the slots of `moves` (each slot once) and counts each move into
+    /// its vertex's travel this step. A vertex that has now travelled `limit` further than
+    /// when it last widened the suspects widens them where it is: `widen` gets its position,
+    /// which the next [`Nearby::cover`] covers too.
+    pub fn apply(&mut self, moves: &[(u32, Vec3)], limit: f32, mut widen: impl FnMut(Vec3)) {
+        for &(slot, c) in moves {
+            let slot = slot as usize;
+            self.positions[slot] += c;
+            let travel = &mut self.travels[slot];
+            if travel.travelled == 0.0 {
+                self.movers.push(slot as u32);
+            }
+            travel.travelled += c.length();
+            if travel.travelled - travel.widened_at >= limit {
+                travel.widened_at = travel.travelled;
+                let point = self.positions[slot];
+                widen(point);
+                self.moved_far(point);
+            }
         }
     }
 
-    /// Vertex `v`'s (covered) index in [`Nearby::vertices`].
-    pub fn slot(&self, v: u32) -> u32 {
-        self.slots[v as usize]
+    /// The slots of the vertices that have moved this step, each once (in no set order).
+    pub fn movers(&self) -> &[u32] {
+        &self.movers
     }
 
     /// Where vertex `v` (covered) is now.
+    #[cfg(test)]
     pub fn position(&self, v: u32) -> Vec3 {
-        self.positions[self.slot(v) as usize]
+        self.positions[self.slots[v as usize] as usize]
     }
 }
 
@@ -381,13 +431,19 @@ mod tests {
                 nearby.begin(n, culling.patch_count());
                 nearby.cover(&culling, &positions[..], config.cell_size as f32);
                 let first = nearby.vertices().to_vec();
-                let moves: Vec<(u32, Vec3)> = first.iter().step_by(3).map(|&v| (v, lift)).collect();
-                nearby.apply(&moves);
+                let moves: Vec<(u32, Vec3)> = (0..first.len() as u32)
+                    .step_by(3)
+                    .map(|slot| (slot, lift))
+                    .collect();
+                nearby.apply(&moves, f32::INFINITY, |_| unreachable!());
                 // The sheet's far corner, away from the crease's suspects.
                 nearby.moved_far(positions[n - 1]);
                 nearby.cover(&culling, &positions[..], config.cell_size as f32);
-                let moved: HashSet<u32> = moves.iter().map(|&(v, _)| v).collect();
-                let listed = nearby.vertices();
+                let moved: HashSet<u32> = moves
+                    .iter()
+                    .map(|&(slot, _)| first[slot as usize])
+                    .collect();
+                let listed = nearby.vertices().to_vec();
                 assert!(listed.is_sorted_by(|a, b| a < b));
                 assert!(first.len() > 32 * PATCH, "{} first", first.len());
                 assert!(
@@ -397,17 +453,33 @@ mod tests {
                 );
                 let listed_set: HashSet<u32> = listed.iter().copied().collect();
                 assert!(first.iter().all(|v| listed_set.contains(v)));
+                // The travels carried to the new slots, and every moved vertex a mover.
+                let movers: HashSet<u32> = nearby
+                    .movers()
+                    .iter()
+                    .map(|&slot| listed[slot as usize])
+                    .collect();
+                assert_eq!(movers, moved);
                 for (&v, &x) in listed.iter().zip(nearby.positions()) {
                     let expected =
                         positions[v as usize] + if moved.contains(&v) { lift } else { Vec3::ZERO };
                     assert_eq!(x, expected, "vertex {v}");
                     assert_eq!(nearby.position(v), x);
                 }
-                (
-                    listed.to_vec(),
+                let listing = (
+                    listed.clone(),
                     nearby.positions().to_vec(),
                     nearby.suspects().to_vec(),
-                )
+                );
+                // Each travel is kept at its vertex's new slot: one moved before widens when
+                // moved once more, one that did not, does not.
+                let slot_of = |v: u32| listed.iter().position(|&w| w == v).unwrap() as u32;
+                let (before, after) = (slot_of(first[0]), slot_of(first[1]));
+                let mut widened = Vec::new();
+                let limit = 1.5 * lift.length();
+                nearby.apply(&[(before, lift), (after, lift)], limit, |x| widened.push(x));
+                assert_eq!(widened, [positions[first[0] as usize] + lift + lift]);
+                listing
             })
         };
         let one = list_on(1);
