@@ -529,7 +529,7 @@ impl Resolver {
     /// self-collision in contact.
     fn apply_local<P: Points + ?Sized>(
         &mut self,
-        moves: Vec<(u32, Vec3)>,
+        mut moves: Vec<(u32, Vec3)>,
         points: &P,
     ) -> Vec<(u32, Vec3)> {
         let limit = 0.9 * self.culling.margin();
@@ -537,10 +537,10 @@ impl Resolver {
         self.nearby
             .apply(&moves, limit, |point| culling.widen(point, points));
         let vertices = self.nearby.vertices();
+        for (slot, _) in &mut moves {
+            *slot = vertices[*slot as usize];
+        }
         moves
-            .into_iter()
-            .map(|(slot, c)| (vertices[slot as usize], c))
-            .collect()
     }
 
     /// Sorts the nearby vertices by every grid's keys at once, a grid a thread, for the local
