@@ -1187,13 +1187,14 @@ impl Culling {
         close: &mut Vec<[u32; 2]>,
     ) {
         let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
-        let apart = na.gap(nb) >= reach;
+        // Measured only where it decides: most pairs of patches a walk reaches are near.
+        let apart = || na.gap(nb) >= reach;
         // Split the larger node (a single patch cannot be).
         let ([first, second], split_a) = match (na.children, nb.children) {
             (None, None) => {
                 let (p, q) = (na.first.min(nb.first), na.first.max(nb.first));
                 if !self.near(p, q) {
-                    if apart {
+                    if apart() {
                         stops.push([a, b]);
                     } else {
                         close.push([p, q]);
@@ -1201,7 +1202,7 @@ impl Culling {
                 }
                 return;
             }
-            _ if apart => {
+            _ if apart() => {
                 stops.push([a, b]);
                 return;
             }

@@ -162,11 +162,16 @@ impl Nearby {
     fn gather<P: Points + ?Sized>(&mut self, culling: &Culling, points: &P, first_new: usize) {
         std::mem::swap(&mut self.positions, &mut self.earlier_positions);
         // The movers' travels go with their vertices to their new slots (only they are not
-        // zero), read out here while the old slots hold.
+        // zero), read out here while the old slots hold. A slot listed twice (its first move
+        // too short to count) is carried once; a travel still zero is not carried at all:
+        // a listing adds vertices, after which the sorts made ahead no longer hold and each
+        // later pass sorts on its own, without asking which vertices moved (see `ahead`).
         self.carried.clear();
         for slot in self.movers.drain(..) {
             let travel = std::mem::take(&mut self.travels[slot as usize]);
-            self.carried.push((self.vertices[slot as usize], travel));
+            if travel.travelled != 0.0 {
+                self.carried.push((self.vertices[slot as usize], travel));
+            }
         }
         // Marks in the words before each word: a vertex's slot is that plus the marks below
         // it in its own word.
@@ -192,7 +197,6 @@ impl Nearby {
         let vertices = Disjoint::new(&mut self.vertices);
         let positions = Disjoint::new(&mut self.positions);
         let suspects = Disjoint::new(&mut self.suspects);
-
         self.covered_list
             .par_iter()
             .enumerate()
@@ -293,7 +297,8 @@ impl Nearby {
         }
     }
 
-    /// The slots of the vertices that have moved this step, each once (in no set order).
+    /// The slots of the vertices that have moved this step, in no set order (a slot whose
+    /// first move was too short to add to its travel may be listed twice).
     pub fn movers(&self) -> &[u32] {
         &self.movers
     }
