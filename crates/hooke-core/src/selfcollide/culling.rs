@@ -173,6 +173,9 @@ impl NearPair {
     }
 }
 
+/// Due near pairs a task measures, each asking for the next one's lines.
+const DUE_TASK: usize = 16;
+
 /// Proofs between looks for adopted pairs whose patches have parted.
 const PARTING_EVERY: u64 = 16;
 
@@ -985,8 +988,17 @@ impl Culling {
                     })
                     .collect();
                 let near = &near;
-                due.into_par_iter()
-                    .map(|i| (i, this.measure_near_pair(&near[i], check)))
+                // The due pairs lie at random in the patches' memory: each task asks for the
+                // next pair's lines while it measures one.
+                due.par_chunks(DUE_TASK)
+                    .flat_map_iter(|task| {
+                        task.iter().enumerate().map(move |(t, &i)| {
+                            if let Some(&next) = task.get(t + 1) {
+                                this.prefetch_pair(&near[next], check.points);
+                            }
+                            (i, this.measure_near_pair(&near[i], check))
+                        })
+                    })
                     .collect::<Vec<_>>()
             },
             || this.far_pairs(&mut frontier, walk, check),
@@ -1047,6 +1059,40 @@ impl Culling {
                 self.frontier.push(leaves);
             } else {
                 k += 1;
+            }
+        }
+    }
+
+    /// Asks for the lines [`Culling::measure_near_pair`] reads first: the patches, the
+    /// offsets of `p`'s joined slots, and the patches' references or, where it names a
+    /// suspect pair's vertices, their places and points (those that fill the owner's blocks).
+    /// (Asked for one pair ahead, 512^2 in contact: the near and far pairs about 3% shorter
+    /// by median, on alternate steps of the same runs; two pairs ahead, no shorter.)
+    fn prefetch_pair<P: Points + ?Sized>(&self, pair: &NearPair, points: &P) {
+        // `p`'s joined slots, which the search asks for as it starts.
+        let slots = self.slots(pair.patches[0]);
+        for line in self.joined_offsets[slots.start..=slots.end].chunks(16) {
+            prefetch(&line[0]);
+        }
+        for patch in pair.patches {
+            let patch = patch as usize;
+            prefetch(&self.patches[patch]);
+            if !pair.suspect {
+                let frame = &self.references[patch];
+                for axis in frame {
+                    for line in axis.chunks(16) {
+                        prefetch(&line[0]);
+                    }
+                }
+            } else {
+                for line in self.places[self.slots(patch as u32)].chunks(16) {
+                    prefetch(&line[0]);
+                }
+                for start in self.block_starts[patch].into_iter().flatten() {
+                    for axis in points.lanes(start).into_iter().flatten() {
+                        prefetch(axis);
+                    }
+                }
             }
         }
     }
