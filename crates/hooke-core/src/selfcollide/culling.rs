@@ -123,39 +123,40 @@ impl Patch {
     }
 }
 
-/// What the near pairs' cached gaps need of a patch each step: 40 bytes, kept apart from the
-/// two cache lines of its [`Patch`], of which each of the 20,000 near pairs of a 512^2 sheet
+/// What the near pairs' cached gaps need of a patch each step: 32 bytes, kept apart from the
+/// cache lines of its [`Patch`], of which each of the 20,000 near pairs of a 512^2 sheet
 /// reads two every step.
 #[derive(Clone, Copy, Debug, Default)]
 struct Standing {
     /// [`Patch::moved`], m.
     moved: DVec3,
-    /// [`Patch::renewed`], m.
-    renewed: f64,
-    /// [`Patch::spread`], m.
-    spread: f32,
+    /// [`Patch::renewed`] and [`Patch::spread`]: how much of a gap cached since the patch was
+    /// built its renewals and its spread now may have taken, m.
+    taken: f64,
 }
 
 impl Standing {
     fn of(patch: &Patch) -> Self {
         Self {
             moved: patch.moved(),
-            renewed: patch.renewed,
-            spread: patch.spread,
+            taken: patch.renewed + f64::from(patch.spread),
         }
     }
 }
 
-/// A pair of near patches and what was measured of it.
+/// A pair of near patches and what was measured of it: 32 bytes, two to a cache line, as the
+/// cached gaps' pass reads every one every step (56 bytes before, with the gap, the renewals
+/// and the offset apart and in f64).
 #[derive(Clone, Copy, Debug)]
 struct NearPair {
     patches: [u32; 2],
-    /// `g_PQ`, m (minus infinity until measured).
-    gap: f32,
-    /// The patches' `shift + centre`, P's less Q's, when `gap` was measured.
-    offset: DVec3,
-    /// The patches' `renewed` when `gap` was measured.
-    renewed: [f64; 2],
+    /// `g_PQ` plus the patches' `renewed` when it was measured, less what rounding `offset`
+    /// may have cost, m (minus infinity until measured): less their `renewed` now, what
+    /// their renewals since have left of the gap.
+    budget: f64,
+    /// The patches' `shift + centre`, P's less Q's, when `g_PQ` was measured, m, rounded to
+    /// f32 (by a 2^-24th of its length at most, which `budget` allows for).
+    offset: Vec3,
     /// Whether the pair was within the distance plus the margin when last checked.
     suspect: bool,
 }
@@ -165,11 +166,20 @@ impl NearPair {
     fn unmeasured(patches: [u32; 2]) -> Self {
         Self {
             patches,
-            gap: f32::NEG_INFINITY,
-            offset: DVec3::ZERO,
-            renewed: [0.0; 2],
+            budget: f64::NEG_INFINITY,
+            offset: Vec3::ZERO,
             suspect: false,
         }
+    }
+
+    /// Caches `gap`, measured with the patches at `offset` (their `shift + centre`, P's less
+    /// Q's) and `renewed` their `renewed`.
+    fn measured(&mut self, gap: f32, offset: DVec3, renewed: [f64; 2]) {
+        let rounded = offset.as_vec3();
+        // A 2^-24th of the offset for its rounding, and as much again for the sum's.
+        let rounding = f64::from(rounded.length()) * 1.2e-7 + 1e-12;
+        self.offset = rounded;
+        self.budget = f64::from(gap) + renewed[0] + renewed[1] - rounding;
     }
 }
 
@@ -1019,11 +1029,9 @@ impl Culling {
             pair.suspect = found.suspect;
             if let Some(gap) = measured {
                 // From the standings `cached_clear` compares them with.
-                let [p, q] = pair.patches;
-                let (a, b) = (&self.standings[p as usize], &self.standings[q as usize]);
-                pair.gap = gap;
-                pair.offset = a.moved - b.moved;
-                pair.renewed = [a.renewed, b.renewed];
+                let [p, q] = pair.patches.map(|patch| patch as usize);
+                let offset = self.standings[p].moved - self.standings[q].moved;
+                pair.measured(gap, offset, [p, q].map(|p| self.patches[p].renewed));
             }
             contact |= found.contact;
             if found.suspect {
@@ -1102,11 +1110,9 @@ impl Culling {
     fn cached_clear<P: ?Sized>(&self, pair: &NearPair, check: &Check<P>) -> bool {
         let [p, q] = pair.patches;
         let (a, b) = (&self.standings[p as usize], &self.standings[q as usize]);
-        let renewed = (a.renewed - pair.renewed[0]) + (b.renewed - pair.renewed[1]);
-        let spreads = f64::from(a.spread) + f64::from(b.spread);
+        let left = pair.budget - (a.taken + b.taken) - f64::from(check.suspect_at);
         // What the drift may take, compared squared: no square root a pair.
-        let left = f64::from(pair.gap) - renewed - spreads - f64::from(check.suspect_at);
-        left >= 0.0 && (a.moved - b.moved - pair.offset).length_squared() <= left * left
+        left >= 0.0 && (a.moved - b.moved - pair.offset.as_dvec3()).length_squared() <= left * left
     }
 
     /// What a near pair that its cached gap does not clear shows, its gap if it had to be
