@@ -478,7 +478,7 @@ impl Resolver {
                 }
                 let moves = self.local_pass(weights, adjacency, config, k);
                 let mut watch = Stopwatch::start(self.timing);
-                let moves = self.apply_local(moves, points);
+                let moves = self.apply_local(moves, points, config.cell_size as f32);
                 self.parts.moving += watch.lap();
                 moves
             } else {
@@ -531,11 +531,14 @@ impl Resolver {
         &mut self,
         mut moves: Vec<(u32, Vec3)>,
         points: &P,
+        cell_size: f32,
     ) -> Vec<(u32, Vec3)> {
         let limit = 0.9 * self.culling.margin();
+        let reach = nearby::cover_reach(&self.culling, cell_size);
         let culling = &mut self.culling;
-        self.nearby
-            .apply(&moves, limit, |point| culling.widen(point, points));
+        self.nearby.apply(&moves, limit, |point, covers| {
+            culling.widen(point, points, reach, covers)
+        });
         let vertices = self.nearby.vertices();
         for (slot, _) in &mut moves {
             *slot = vertices[*slot as usize];

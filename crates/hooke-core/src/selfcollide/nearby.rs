@@ -60,8 +60,9 @@ pub(super) struct Nearby {
     covered_list: Vec<u32>,
     /// How many of the culling's suspect patches are covered.
     suspects_covered: usize,
-    /// Where vertices that travelled past the margin have got to, still to be covered.
-    pending: Vec<Vec3>,
+    /// The patches near where vertices that travelled past the margin have got to, found by
+    /// their widenings (see [`Nearby::apply`]), still to be covered.
+    pending: Vec<u32>,
 }
 
 impl Nearby {
@@ -95,31 +96,31 @@ impl Nearby {
         self.pending.clear();
     }
 
-    /// Notes that a vertex has travelled past the margin to `point`: the next [`Nearby::cover`]
-    /// covers every vertex that may share a cell with it there or within a margin of it.
-    pub fn moved_far(&mut self, point: Vec3) {
-        self.pending.push(point);
+    /// Notes that a vertex has travelled past the margin to `point`, as a widening in
+    /// [`Nearby::apply`] does: the next [`Nearby::cover`] covers every vertex that may share a
+    /// cell `cell_size` wide with it there or within a margin of it.
+    #[cfg(test)]
+    pub fn moved_far(&mut self, culling: &Culling, point: Vec3, cell_size: f32) {
+        let reach = cover_reach(culling, cell_size);
+        culling.patches_near(point, point, reach, |p| self.pending.push(p));
     }
 
     /// Adds every vertex that may share a cell `cell_size` wide with a suspect of `culling`,
     /// or with a vertex at a point given to [`Nearby::moved_far`]; the new vertices' positions
     /// are read from `points` (they have not moved).
     pub fn cover<P: Points + ?Sized>(&mut self, culling: &Culling, points: &P, cell_size: f32) {
-        // A tenth of a percent for the cells' rounding.
-        let reach = cell_size * 1.001;
+        let reach = cover_reach(culling, cell_size);
         let mut added = Vec::new();
         let mut add = |p: u32| added.push(p);
         let new_suspects = &culling.suspect_patches()[self.suspects_covered..];
         for &p in new_suspects {
             let (low, high) = culling.suspect_box_of(p);
-            culling.patches_near(low, high, reach + culling.margin(), &mut add);
+            culling.patches_near(low, high, reach, &mut add);
         }
         self.suspects_covered = culling.suspect_patches().len();
-        // A vertex that widened the suspects at `point` may travel a margin further before it
-        // widens them again.
-        for point in self.pending.drain(..) {
-            culling.patches_near(point, point, reach + culling.margin(), &mut add);
-        }
+        // A vertex that widened the suspects where it got to may travel a margin further
+        // before it widens them again: the patches within reach of there, found then.
+        added.append(&mut self.pending);
         let before = self.covered_list.len();
         for p in added {
             if !self.covered[p as usize] {
@@ -277,9 +278,15 @@ impl Nearby {
 
     /// Moves the vertices at the slots of `moves` (each slot once) and counts each move into
     /// its vertex's travel this step. A vertex that has now travelled `limit` further than
-    /// when it last widened the suspects widens them where it is: `widen` gets its position,
-    /// which the next [`Nearby::cover`] covers too.
-    pub fn apply(&mut self, moves: &[(u32, Vec3)], limit: f32, mut widen: impl FnMut(Vec3)) {
+    /// when it last widened the suspects widens them where it is: `widen` gets its position
+    /// and adds the patches within [`cover_reach`] of it, which the next [`Nearby::cover`]
+    /// covers too.
+    pub fn apply(
+        &mut self,
+        moves: &[(u32, Vec3)],
+        limit: f32,
+        mut widen: impl FnMut(Vec3, &mut Vec<u32>),
+    ) {
         for &(slot, c) in moves {
             let slot = slot as usize;
             self.positions[slot] += c;
@@ -290,9 +297,7 @@ impl Nearby {
             travel.travelled += c.length();
             if travel.travelled - travel.widened_at >= limit {
                 travel.widened_at = travel.travelled;
-                let point = self.positions[slot];
-                widen(point);
-                self.moved_far(point);
+                widen(self.positions[slot], &mut self.pending);
             }
         }
     }
@@ -308,6 +313,13 @@ impl Nearby {
     pub fn position(&self, v: u32) -> Vec3 {
         self.positions[self.slots[v as usize] as usize]
     }
+}
+
+/// How far from a suspect's box (or a point a vertex travelled to) a patch's box may lie and
+/// hold a vertex that shares a cell `cell_size` wide with it (a tenth of a percent for the
+/// cells' rounding), or will within a margin's travel.
+pub fn cover_reach(culling: &Culling, cell_size: f32) -> f32 {
+    cell_size * 1.001 + culling.margin()
 }
 
 #[cfg(test)]
@@ -341,7 +353,7 @@ mod tests {
         }
         nearby.begin(positions.len(), culling.patch_count());
         let point = travelled_to(culling);
-        nearby.moved_far(point);
+        nearby.moved_far(culling, point, config.cell_size as f32);
         nearby.cover(culling, positions, config.cell_size as f32);
         let covered: HashSet<u32> = nearby.vertices().iter().copied().collect();
         assert!(nearby.vertices().is_sorted());
@@ -440,9 +452,9 @@ mod tests {
                     .step_by(3)
                     .map(|slot| (slot, lift))
                     .collect();
-                nearby.apply(&moves, f32::INFINITY, |_| unreachable!());
+                nearby.apply(&moves, f32::INFINITY, |_, _| unreachable!());
                 // The sheet's far corner, away from the crease's suspects.
-                nearby.moved_far(positions[n - 1]);
+                nearby.moved_far(&culling, positions[n - 1], config.cell_size as f32);
                 nearby.cover(&culling, &positions[..], config.cell_size as f32);
                 let moved: HashSet<u32> = moves
                     .iter()
@@ -482,7 +494,9 @@ mod tests {
                 let (before, after) = (slot_of(first[0]), slot_of(first[1]));
                 let mut widened = Vec::new();
                 let limit = 1.5 * lift.length();
-                nearby.apply(&[(before, lift), (after, lift)], limit, |x| widened.push(x));
+                nearby.apply(&[(before, lift), (after, lift)], limit, |x, _| {
+                    widened.push(x)
+                });
                 assert_eq!(widened, [positions[first[0] as usize] + lift + lift]);
                 listing
             })
