@@ -51,7 +51,7 @@ use rayon::prelude::*;
 
 use super::LANES;
 use super::wide::wide;
-use super::{Points, Stopwatch, prefetch};
+use super::{Points, Stopwatch, prefetch, prefetch_lines};
 use crate::Adjacency;
 
 /// Most vertices in one patch (an 8 x 8 block of a grid).
@@ -1105,23 +1105,16 @@ impl Culling {
     fn prefetch_pair<P: Points + ?Sized>(&self, pair: &NearPair, points: &P) {
         // `p`'s joined slots, which the search asks for as it starts.
         let slots = self.slots(pair.patches[0]);
-        for line in self.joined_offsets[slots.start..=slots.end].chunks(16) {
-            prefetch(&line[0]);
-        }
+        prefetch_lines(&self.joined_offsets[slots.start..=slots.end]);
         for patch in pair.patches {
             let patch = patch as usize;
             prefetch(&self.patches[patch]);
             if !pair.suspect {
-                let frame = &self.references[patch];
-                for axis in frame {
-                    for line in axis.chunks(16) {
-                        prefetch(&line[0]);
-                    }
-                }
+                self.references[patch]
+                    .iter()
+                    .for_each(|axis| prefetch_lines(axis));
             } else {
-                for line in self.places[self.slots(patch as u32)].chunks(16) {
-                    prefetch(&line[0]);
-                }
+                prefetch_lines(&self.places[self.slots(patch as u32)]);
                 for start in self.block_starts[patch].into_iter().flatten() {
                     for axis in points.lanes(start).into_iter().flatten() {
                         prefetch(axis);
@@ -1354,9 +1347,8 @@ impl Culling {
                 let first = slots.start;
                 let offsets = &self.joined_offsets[first..=slots.end];
                 let joined = offsets[0] as usize..offsets[offsets.len() - 1] as usize;
-                for line in offsets.chunks(16).chain(self.joined[joined].chunks(16)) {
-                    prefetch(&line[0]);
-                }
+                prefetch_lines(offsets);
+                prefetch_lines(&self.joined[joined]);
                 // `q`'s points by axis, unused slots far away, so each row below is a plain
                 // loop (a frame's unused slots repeat its first point: its box is the same).
                 let mut others = frame(q);

@@ -106,8 +106,8 @@ impl Nearby {
     }
 
     /// Adds every vertex that may share a cell `cell_size` wide with a suspect of `culling`,
-    /// or with a vertex at a point given to [`Nearby::moved_far`]; the new vertices' positions
-    /// are read from `points` (they have not moved).
+    /// or with a vertex where a widening in [`Nearby::apply`] found it; the new vertices'
+    /// positions are read from `points` (they have not moved).
     pub fn cover<P: Points + ?Sized>(&mut self, culling: &Culling, points: &P, cell_size: f32) {
         let reach = cover_reach(culling, cell_size);
         let mut added = Vec::new();
