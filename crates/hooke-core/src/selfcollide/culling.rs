@@ -17,7 +17,7 @@
 //! |x_i - x_j| >= |(R_i + c_P) - (R_j + c_Q)| - E_P - E_Q.
 //! ```
 //!
-//! A patch renews its references when `E_P` grows past a quarter of its slack (it bends or
+//! A patch renews its references when `E_P` grows past an eighth of its slack (it bends or
 //! turns); a pure translation costs nothing.
 //!
 //! - **Near pairs** (patches within two springs of each other on the mesh, and each patch
@@ -1532,16 +1532,19 @@ fn measure_patch_with(
     } else {
         (0.5 * (moved_low + moved_high), boxed)
     };
-    // A quarter of the slack its near pairs had when measured (and a tenth of the distance
+    // An eighth of the slack its near pairs had when measured (and a fortieth of the distance
     // while none is measured or one is in contact), so a patch renews only when it has bent
     // or turned enough to matter. References that are not finite (say, taken from a state
-    // that was not) are renewed.
+    // that was not) are renewed. A renewal takes its spread off every cached gap of the
+    // patch, but so does a spread left standing: the 512^2 workload resumed in contact for
+    // 500 steps measured 215,499 pairs of patches with these shares (113,217 renewals)
+    // against 250,396 with a quarter and a tenth (65,355 renewals), with the same moves.
     let closest = if patch.closest.is_finite() {
         patch.closest
     } else {
         patch.earlier_closest
     };
-    let renew_above = (0.25 * (closest - distance)).max(0.1 * distance);
+    let renew_above = (0.125 * (closest - distance)).max(0.025 * distance);
     patch.last_moved = moved;
     if patch.reference_scale.is_finite() && spread <= renew_above {
         (patch.centre, patch.spread) = (centre, spread);
@@ -2494,7 +2497,7 @@ pub(crate) mod tests {
             .expect("an inner patch");
         // 3.3 distances along -x: its vertices 0.7 distances (and the bend's 0.5 up or down)
         // from those of the patch beside it two along; half of it up and half down by half a
-        // distance, past a quarter of its slack (the diagonal's 2.83 distances less one).
+        // distance, past an eighth of its slack (the diagonal's 2.83 distances less one).
         let mut moved = base.clone();
         for (k, &v) in culling.members_of(patch).iter().enumerate() {
             let up = if k < PATCH / 2 { 0.5 } else { -0.5 };
