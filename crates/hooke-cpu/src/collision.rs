@@ -77,18 +77,12 @@ impl CpuSolver {
         let mut watch = selfcollide::Stopwatch::start(timed);
         let internal = &self.numbering.internal;
         let mut points = self.points_fresh.then_some(self.points.as_flattened_mut());
-        // The axes sliced once, not per move (`Soa::set` slices them at each call): half the
-        // time (alternate steps of the 512^2 workload in contact, 1,400-1,900 moves a step:
-        // 12-35 us against 24-61).
-        let [nx, ny, nz] = self.next.axes_mut();
-        let [dx, dy, dz] = self.delta.axes_mut();
         for (v, c) in moves {
             let k = internal[v as usize] as usize;
-            let (block, lane) = (k / LANES, k % LANES);
-            let moved = Vec3::new(nx[block][lane], ny[block][lane], nz[block][lane]) + c;
-            [nx[block][lane], ny[block][lane], nz[block][lane]] = moved.to_array();
-            let delta = Vec3::new(dx[block][lane], dy[block][lane], dz[block][lane]) + c;
-            [dx[block][lane], dy[block][lane], dz[block][lane]] = delta.to_array();
+            let moved = Vec3::from_array(self.next.get(k)) + c;
+            self.next.set(k, moved.to_array());
+            self.delta
+                .set(k, (Vec3::from_array(self.delta.get(k)) + c).to_array());
             if let Some(points) = points.as_deref_mut() {
                 points[point_slot(k as u32) as usize] = moved.extend(0.0).to_array();
             }

@@ -98,9 +98,12 @@ impl<const N: usize> Lanes<N> {
         std::array::from_fn(|k| self.axis(k)[index / LANES][index % LANES])
     }
 
+    /// Writes one vector's entries, each straight into its axis' block: splitting the buffer
+    /// into its axes (`axes_mut`) for every call made a write-back of self-collision's
+    /// moves take twice as long.
     pub fn set(&mut self, index: usize, value: [f32; N]) {
-        for (axis, v) in self.axes_mut().into_iter().zip(value) {
-            axis[index / LANES][index % LANES] = v;
+        for (k, v) in value.into_iter().enumerate() {
+            self.data[self.start[k] + index / LANES][index % LANES] = v;
         }
     }
 
