@@ -406,6 +406,15 @@ fn under([low, high]: [Vec4; 2], limit: f32) -> u64 {
     u64::from(low.cmplt(limit).bitmask()) | u64::from(high.cmplt(limit).bitmask()) << 4
 }
 
+/// The slots of `values` below `limit`, a bit each from the lowest.
+#[inline(always)]
+fn slots_below(values: &[f32; PATCH], limit: f32) -> u64 {
+    (0..PATCH / 8).fold(0, |bits, r| {
+        let four = |first: usize| Vec4::from_slice(&values[first..first + 4]);
+        bits | under([four(8 * r), four(8 * r + 4)], limit) << (8 * r)
+    })
+}
+
 /// The box of each row of 8 slots of `frame`.
 fn row_boxes(frame: &Frame) -> [(Vec3, Vec3); PATCH / 8] {
     std::array::from_fn(|r| {
@@ -1379,11 +1388,13 @@ impl Culling {
                 let nearest = to_box.iter().position(|&d| d == least).unwrap_or(0);
                 let enough = enough * enough;
                 let mut closest = f32::INFINITY;
-                for k in std::iter::once(nearest).chain((0..slots.len()).filter(|&k| k != nearest))
-                {
-                    if closest < enough {
-                        break;
-                    }
+                // The others as a bit each, listed once the nearest has set `closest`: a test
+                // a slot in slot order, whose outcome follows no pattern, ran 3-11% longer a
+                // search of two patches (the same searches timed both ways).
+                let (mut candidates, mut listed) = (1u64 << nearest, false);
+                while candidates != 0 && closest >= enough {
+                    let k = candidates.trailing_zeros() as usize;
+                    candidates &= candidates - 1;
                     if to_box[k] >= closest {
                         continue;
                     }
@@ -1410,6 +1421,10 @@ impl Culling {
                         }
                     }
                     closest = lanes.iter().fold(closest, |a, &b| smaller(a, b));
+                    if !listed {
+                        listed = true;
+                        candidates = slots_below(&to_box, closest) & !(1u64 << nearest);
+                    }
                 }
                 closest.sqrt()
             },
