@@ -19,8 +19,8 @@
 //! so the states are bit-identical (tested).
 //!
 //! **Several steps per sweep.** Where nothing acts between one step's forces and the next (see
-//! `sweep`), [`Blocks::sweep`] advances the blocks up to [`DEPTH`] steps while they are in the
-//! cache, as the gather's sweep does with slices. A block's rows reach at most `r` blocks past
+//! `sweep`), [`Blocks::sweep`] advances the blocks several steps while they are in the cache
+//! (as many as the gather's sweep would: see [`BlockSweep::plan`]), as it does with slices. A block's rows reach at most `r` blocks past
 //! it (its springs' ends), so the slices of block `k` sum rows of blocks `k - r..=k`. Step `j`
 //! of a sweep (1-based) computes its rows from the positions of step `j - 1` and integrates
 //! from them into the buffer of step `j - 2`. Each band's steps lean into the band above, as
@@ -60,10 +60,6 @@ use crate::view::{Floats, Points, Positions};
 /// of 4,096 it fitted one band only and did not sweep, and blocks alone did not pay.
 const MIN_SLICES: usize = 8_192;
 
-/// Steps per sweep over the blocks at most. Fewer than the gather's [`sweep::DEPTH`]: a band
-/// must be `4 DEPTH` reaches wide, and a scatter mesh of 65,536 vertices has 64 blocks.
-pub(crate) const DEPTH: usize = 4;
-
 /// Bands per thread, so a thread that finishes early takes another.
 const BANDS_PER_THREAD: usize = 4;
 
@@ -90,6 +86,8 @@ pub(crate) struct Blocks {
 struct BlockSweep {
     reach: usize,
     bands: Vec<usize>,
+    /// Steps per sweep at most (2..=[`sweep::DEPTH`]).
+    depth: usize,
 }
 
 impl Blocks {
@@ -149,9 +147,9 @@ impl Blocks {
         })
     }
 
-    /// Whether several steps may run in one sweep over the blocks.
-    pub(crate) fn sweeps(&self) -> bool {
-        self.sweep.is_some()
+    /// Steps per sweep at most, where the blocks sweep.
+    pub(crate) fn sweep_depth(&self) -> Option<usize> {
+        self.sweep.as_ref().map(|plan| plan.depth)
     }
 
     fn band_count(&self) -> usize {
@@ -216,7 +214,7 @@ impl Blocks {
 }
 
 impl Blocks {
-    /// `depth` steps (2..=[`DEPTH`]) in one sweep over the blocks, a band per task (see the
+    /// `depth` steps (2 up to the plan's depth) in one sweep over the blocks, a band per task (see the
     /// module docs). Per step, whether every new position was finite.
     #[allow(clippy::too_many_arguments)] // a step's inputs, passed on to its kernels
     pub(crate) fn sweep(
@@ -250,10 +248,12 @@ impl Blocks {
             }
         };
         let (r, blocks, bands) = (plan.reach, self.rows.len() - 1, plan.bands.len() - 1);
+        let depth = plan.depth;
         // Around a boundary b, both bands touch blocks [R(b, 1), S(b, depth)) of any sweep of
-        // up to DEPTH steps (see `BlockSweep::slice_line`); these zones keep pages of their own.
+        // up to `depth` steps (see `BlockSweep::slice_line`); these zones keep pages of their
+        // own.
         let zone =
-            |b: usize| b.saturating_sub((DEPTH + 1) * r + 1)..(b + DEPTH * r + 1).min(blocks);
+            |b: usize| b.saturating_sub((depth + 1) * r + 1)..(b + depth * r + 1).min(blocks);
         let interiors: Vec<Range<usize>> = (0..bands)
             .map(|k| {
                 let start = if k == 0 { 0 } else { zone(plan.bands[k]).end };
@@ -266,11 +266,11 @@ impl Blocks {
                 rows.start * row_bytes..rows.end * row_bytes
             })
             .collect();
-        // The rows a band has in use at once span at most DEPTH reaches of blocks and the block
-        // being written: step j's from a reach below its slices' front to its rows' front,
-        // which trails step j - 1's by a reach (see `BlockSweep::run_band`).
+        // The rows a band has in use at once span at most `depth` reaches of blocks and the
+        // block being written: step j's from a reach below its slices' front to its rows'
+        // front, which trails step j - 1's by a reach (see `BlockSweep::run_band`).
         let widest = self.rows.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
-        let ring_bytes = (DEPTH * r + 1) * widest * row_bytes;
+        let ring_bytes = (depth * r + 1) * widest * row_bytes;
         ForceRing::new(arrays, rows * row_bytes, &interiors, ring_bytes)
     }
 
@@ -449,9 +449,13 @@ impl BlockSweep {
 
     /// The sweep over `rows` (each block's first spring row, and the end of the last) with
     /// `threads` threads, or `None` where it cannot run or would not pay: a spring with an end
-    /// in a block before its row's, or rows reaching too far for bands at least `4 DEPTH`
-    /// reaches wide, two of them on several threads (one band sweeps on one thread: the
-    /// irregular bench mesh's scatter step took 0.53-0.58 ms so, against 0.35-0.36 plainly).
+    /// in a block before its row's, or rows reaching too far for bands 8 reaches wide, two of
+    /// them on several threads (one band sweeps on one thread: the irregular bench mesh's
+    /// scatter step took 0.53-0.58 ms so, against 0.35-0.36 plainly). As many steps per sweep
+    /// as the gather's rule gives (`sweep::bands_and_depth`): the most, up to 6, that keep
+    /// as many bands as two steps would, each 4 steps of reach wide. (4 at most until
+    /// 2026-12-05: on an AMD EPYC VM the 2048^2 grid's scatter step took 10.2-10.4 ms at 6
+    /// against 10.6-10.7 at 4, three runs each; see the README.)
     fn plan(
         springs: &SpringTable,
         rows: &[usize],
@@ -477,10 +481,11 @@ impl BlockSweep {
             })
             .collect();
         let reach = reaches?.into_iter().max().unwrap_or(0);
-        let band_count = sweep::bands(blocks, 4 * DEPTH * reach.max(1), threads)?;
+        let (band_count, depth) = sweep::bands_and_depth(blocks, reach, threads)?;
         Some(Self {
             reach,
             bands: (0..=band_count).map(|b| b * blocks / band_count).collect(),
+            depth,
         })
     }
 }
@@ -787,14 +792,27 @@ mod tests {
 
     #[test]
     fn blocks_with_room_for_one_band_sweep_only_on_one_thread() {
-        // Rows of 2,048 vertices: a spring reaches up to 2 blocks of 1,056 past its own, so
-        // the 63 blocks hold one band 4 depths of reach wide, which one thread alone would
-        // sweep while the others waited.
-        let scene = benchmark_scene(MeshSection::unit_grid(2048, 32), 2048 * 32);
-        for (threads, sweeps) in [(1, true), (2, false), (3, false)] {
+        // Rows of 4,096 vertices: a spring reaches up to 4 blocks of 1,056 past its own, so
+        // the 63 blocks hold one band 4 steps of reach wide even at 2 steps a sweep, which one
+        // thread alone would sweep while the others waited.
+        let scene = benchmark_scene(MeshSection::unit_grid(4096, 16), 4096 * 16);
+        for (threads, depth) in [(1, Some(3)), (2, None), (3, None)] {
             let solver = CpuSolver::for_test(&scene, Method::Scatter, threads);
             let plan = solver.blocks.as_ref().expect("blocks");
-            assert_eq!(plan.sweeps(), sweeps, "{threads} threads");
+            assert_eq!(plan.sweep_depth(), depth, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn blocks_sweep_the_most_steps_that_keep_a_band_per_thread() {
+        // Rows of 2,048 vertices: a spring reaches up to 2 blocks past its own, so the 63
+        // blocks hold two bands of 3 steps of reach (24 blocks), not of 4 (32).
+        let scene = benchmark_scene(MeshSection::unit_grid(2048, 32), 2048 * 32);
+        for (threads, depth) in [(1, 6), (2, 3)] {
+            let solver = CpuSolver::for_test(&scene, Method::Scatter, threads);
+            let plan = solver.blocks.as_ref().expect("blocks");
+            assert_eq!(plan.sweep_depth(), Some(depth), "{threads} threads");
+            assert_eq!(solver.steps_per_sweep(), depth, "{threads} threads");
         }
     }
 

@@ -55,8 +55,7 @@ use crate::{CpuSolver, Topology};
 /// Steps per sweep at most. Four halve what two stream from memory again; six took 1-13% off
 /// the 2048^2 grid's gather step in four pairs of runs on an Intel VM (no change beyond its
 /// noise at the other sizes), eight nothing on an AMD one (see the README). A mesh sweeps as
-/// many as leave each thread a band (see [`Sweep::of`]); scatter's blocks sweep
-/// [`crate::blocks::DEPTH`].
+/// many as leave each thread a band (see [`Sweep::of`]), and so do scatter's blocks.
 pub(crate) const DEPTH: usize = 6;
 
 /// Slices that step 1 advances by at a time: 2,048 vertices, so the slices every step of the
@@ -200,9 +199,14 @@ fn lean(reaches: &[usize], b: usize, reach: usize) -> usize {
     reaches[near].iter().copied().max().unwrap_or(0).max(1)
 }
 
-/// The bands and steps per sweep of [`Sweep::of`] for `slices` slices of this reach.
-fn bands_and_depth(slices: usize, reach: usize, threads: usize) -> Option<(usize, usize)> {
-    let bands_of = |depth: usize| bands(slices, 4 * depth * reach.max(1), threads);
+/// The bands and steps per sweep of [`Sweep::of`] for `units` slices (or scatter's blocks) of
+/// this reach.
+pub(crate) fn bands_and_depth(
+    units: usize,
+    reach: usize,
+    threads: usize,
+) -> Option<(usize, usize)> {
+    let bands_of = |depth: usize| bands(units, 4 * depth * reach.max(1), threads);
     let most = bands_of(2)?;
     let depth = (2..=DEPTH).rev().find(|&d| bands_of(d) == Some(most))?;
     Some((most, depth))
@@ -443,10 +447,11 @@ impl CpuSolver {
     pub(crate) fn sweep_depth(&self) -> usize {
         match &self.topology {
             Topology::Gather(_) => self.sweep.as_ref().map_or(1, |plan| plan.depth),
-            Topology::Scatter { .. } if self.blocks.as_ref().is_some_and(Blocks::sweeps) => {
-                crate::blocks::DEPTH
-            }
-            Topology::Scatter { .. } => 1,
+            Topology::Scatter { .. } => self
+                .blocks
+                .as_ref()
+                .and_then(Blocks::sweep_depth)
+                .unwrap_or(1),
         }
     }
 
