@@ -79,6 +79,17 @@ pub(crate) struct Blocks {
     sweep: Option<BlockSweep>,
 }
 
+/// Blocks a band holds at least for its sweeps to go past [`NARROW_BAND_DEPTH`] steps. Where
+/// bands are narrower, the work a band does near its boundaries, which grows with the steps
+/// per sweep, weighs more: on an AMD EPYC VM the irregular bench mesh of 65,536 vertices (two
+/// bands of 31 blocks) took 0.195-0.196 ms a scatter step sweeping 6 steps against
+/// 0.192-0.195 at 4 (four runs each), while the irregular mesh of 262,144 (two bands of 124)
+/// took 1.08-1.11 ms at 6 against 1.17-1.23 at 4 (see the README).
+const WIDE_BAND: usize = 64;
+
+/// Steps per sweep at most on bands narrower than [`WIDE_BAND`] blocks.
+const NARROW_BAND_DEPTH: usize = 4;
+
 /// Several steps per sweep over the blocks: the furthest block, past its own, that a
 /// block's rows reach (so also the furthest before its own that a slice's sums reach), and
 /// the bands of the sweep, first block each, one more entry ending the last.
@@ -453,9 +464,10 @@ impl BlockSweep {
     /// them on several threads (one band sweeps on one thread: the irregular bench mesh's
     /// scatter step took 0.53-0.58 ms so, against 0.35-0.36 plainly). As many steps per sweep
     /// as the gather's rule gives (`sweep::bands_and_depth`): the most, up to 6, that keep
-    /// as many bands as two steps would, each 4 steps of reach wide. (4 at most until
-    /// 2026-12-05: on an AMD EPYC VM the 2048^2 grid's scatter step took 10.2-10.4 ms at 6
-    /// against 10.6-10.7 at 4, three runs each; see the README.)
+    /// as many bands as two steps would, each 4 steps of reach wide; but no more than
+    /// [`NARROW_BAND_DEPTH`] on bands narrower than [`WIDE_BAND`] blocks. (4 at most until
+    /// 2026-12-05: on an AMD EPYC VM the 2048^2 grid's scatter step took 10.1-10.4 ms at 6
+    /// against 10.3-10.7 at 4, seven runs each; see the README.)
     fn plan(
         springs: &SpringTable,
         rows: &[usize],
@@ -482,6 +494,11 @@ impl BlockSweep {
             .collect();
         let reach = reaches?.into_iter().max().unwrap_or(0);
         let (band_count, depth) = sweep::bands_and_depth(blocks, reach, threads)?;
+        let depth = if blocks / band_count < WIDE_BAND {
+            depth.min(NARROW_BAND_DEPTH)
+        } else {
+            depth
+        };
         Some(Self {
             reach,
             bands: (0..=band_count).map(|b| b * blocks / band_count).collect(),
@@ -806,9 +823,10 @@ mod tests {
     #[test]
     fn blocks_sweep_the_most_steps_that_keep_a_band_per_thread() {
         // Rows of 2,048 vertices: a spring reaches up to 2 blocks past its own, so the 63
-        // blocks hold two bands of 3 steps of reach (24 blocks), not of 4 (32).
+        // blocks hold two bands of 3 steps of reach (24 blocks), not of 4 (32); one band of
+        // 63 blocks would hold 6, but sweeps 4, being narrower than `WIDE_BAND`.
         let scene = benchmark_scene(MeshSection::unit_grid(2048, 32), 2048 * 32);
-        for (threads, depth) in [(1, 6), (2, 3)] {
+        for (threads, depth) in [(1, 4), (2, 3)] {
             let solver = CpuSolver::for_test(&scene, Method::Scatter, threads);
             let plan = solver.blocks.as_ref().expect("blocks");
             assert_eq!(plan.sweep_depth(), Some(depth), "{threads} threads");
