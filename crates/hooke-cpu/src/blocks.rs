@@ -19,8 +19,9 @@
 //! so the states are bit-identical (tested).
 //!
 //! **Several steps per sweep.** Where nothing acts between one step's forces and the next (see
-//! `sweep`), [`Blocks::sweep`] advances the blocks several steps while they are in the cache
-//! (as many as the gather's sweep would: see [`BlockSweep::plan`]), as it does with slices. A block's rows reach at most `r` blocks past
+//! `sweep`), [`Blocks::sweep`] advances the blocks several steps while they are in the cache,
+//! as the gather's sweep does with slices (as many steps as its rule gives, but 4 at most on
+//! narrow bands: see [`BlockSweep::plan`]). A block's rows reach at most `r` blocks past
 //! it (its springs' ends), so the slices of block `k` sum rows of blocks `k - r..=k`. Step `j`
 //! of a sweep (1-based) computes its rows from the positions of step `j - 1` and integrates
 //! from them into the buffer of step `j - 2`. Each band's steps lean into the band above, as
@@ -225,8 +226,8 @@ impl Blocks {
 }
 
 impl Blocks {
-    /// `depth` steps (2 up to the plan's depth) in one sweep over the blocks, a band per task (see the
-    /// module docs). Per step, whether every new position was finite.
+    /// `depth` steps (2 up to the plan's depth) in one sweep over the blocks, a band per task
+    /// (see the module docs). Per step, whether every new position was finite.
     #[allow(clippy::too_many_arguments)] // a step's inputs, passed on to its kernels
     pub(crate) fn sweep(
         &self,

@@ -1480,19 +1480,17 @@ fn measure_patch_with(
 ) -> Option<f32> {
     // The centre of the displacements' box, whose spread is at most half the box's diagonal:
     // a sheet that moves as one has next to none. (A second centre, where the patch's last
-    // step of motion carried it, with the farthest displacement from it, was measured
-    // beside it and kept where its spread was smaller: in 37% of the measurements of the
-    // 512^2 workload resumed in contact for 500 steps, but without it only 1.2% more pairs
-    // of patches were measured (218,184 against 215,499), for 12 vector operations a row
-    // here instead of 17. The box's centre and the farthest displacement from it would need a second
-    // pass over the patch.)
+    // step of motion carried it, was measured beside it and kept where its spread was
+    // smaller: in 37% of the measurements of the 512^2 workload resumed in contact for 500
+    // steps, yet without it only 1.2% more pairs of patches were measured (218,184 against
+    // 215,499), for 12 vector operations a row here instead of 17.)
     let reference_rows = references
         .each_ref()
         .map(|axis| axis.as_chunks::<LANES>().0);
     // The points' own box is not taken: the references' box moved by the displacements' box
     // holds them. With the finiteness read from a running sum (below; of the squares then),
-    // measuring ran a third fewer instructions (callgrind, `hooke run scenes/self-collision.toml --steps 300`:
-    // 12.3 million against 18.2).
+    // measuring ran a third fewer instructions (callgrind, `hooke run
+    // scenes/self-collision.toml --steps 300`: 12.3 million against 18.2).
     let lanes = |value: f32| [value; LANES];
     let (mut moved_low, mut moved_high) =
         ([lanes(f32::INFINITY); 3], [lanes(f32::NEG_INFINITY); 3]);
