@@ -34,7 +34,7 @@ echo "== hooke bench --backend gpu --self-collision 4"
   tee "$out/hooke-gpu-self-collision.txt"
 
 if ! python3 -c "import warp" 2>/dev/null; then
-  echo "== no warp peer: python3 cannot import warp (see the README's real-GPU sections)" >&2
+  echo "== no warp peer: python3 cannot import warp (see docs/performance-log.md)" >&2
   exit 1
 fi
 

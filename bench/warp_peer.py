@@ -18,8 +18,9 @@ ms/step: the median over `--repeats` timed blocks of `--steps` steps, each endin
 the PLY's mesh came from must match the state hooke wrote there (`hooke run
 scenes/bench-grid-128.toml --steps N --backend gpu --no-frames --output DIR` writes one).
 
-Warp is not in .venv; on a machine with a GPU and no network, carry its wheel (see the README's
-real-GPU section). Run: `python bench/warp_peer.py --sizes 128,256,512 --steps 300`.
+Warp is not in .venv; on a machine with a GPU and no network, carry its wheel (see the real-GPU
+sections of docs/performance-log.md).
+Run: `python bench/warp_peer.py --sizes 128,256,512 --steps 300`.
 """
 # Warp reads its kernels' annotations (`wp.array(dtype=...)`) as objects: they are Warp's DSL,
 # not Python types, so no `from __future__ import annotations`; mypy checks the rest.

@@ -37,8 +37,8 @@
 //! `j` up to them. Bands are taken from the top down, and a band does its lowest blocks without
 //! waiting, so the band waited for is always running and soon there. An earlier schedule
 //! stopped each band's steps short of its ends and ran the strips left at each boundary in a
-//! second pass, one thread per boundary (see the README). Every vertex sums the same forces in
-//! the same order: the states are bit-identical (tested).
+//! second pass, one thread per boundary (see the performance log). Every vertex sums the same
+//! forces in the same order: the states are bit-identical (tested).
 
 use std::ops::Range;
 
@@ -57,7 +57,7 @@ use crate::view::{Floats, Points, Positions};
 /// Slices a mesh needs at least for blocks to pay: 65,536 vertices. Below that, a step's
 /// forces stay in the caches anyway. On an Intel Xeon VM with 2 MiB of L2 a core, the
 /// irregular bench mesh of 65,536 vertices, swept over blocks of 1,024 first ends, took
-/// 0.278-0.317 ms a scatter step against 0.295-0.365 plainly (see the README); with blocks
+/// 0.278-0.317 ms a scatter step against 0.295-0.365 plainly (see the performance log); with blocks
 /// of 4,096 it fitted one band only and did not sweep, and blocks alone did not pay.
 const MIN_SLICES: usize = 8_192;
 
@@ -85,7 +85,7 @@ pub(crate) struct Blocks {
 /// per sweep, weighs more: on an AMD EPYC VM the irregular bench mesh of 65,536 vertices (two
 /// bands of 31 blocks) took 0.195-0.196 ms a scatter step sweeping 6 steps against
 /// 0.192-0.195 at 4 (four runs each), while the irregular mesh of 262,144 (two bands of 124)
-/// took 1.08-1.11 ms at 6 against 1.17-1.23 at 4 (see the README).
+/// took 1.08-1.11 ms at 6 against 1.17-1.23 at 4 (see the performance log).
 const WIDE_BAND: usize = 64;
 
 /// Steps per sweep at most on bands narrower than [`WIDE_BAND`] blocks.
@@ -468,7 +468,7 @@ impl BlockSweep {
     /// as many bands as two steps would, each 4 steps of reach wide; but no more than
     /// [`NARROW_BAND_DEPTH`] on bands narrower than [`WIDE_BAND`] blocks. (4 at most until
     /// 2026-12-05: on an AMD EPYC VM the 2048^2 grid's scatter step took 10.1-10.4 ms at 6
-    /// against 10.3-10.7 at 4, seven runs each; see the README.)
+    /// against 10.3-10.7 at 4, seven runs each; see the performance log.)
     fn plan(
         springs: &SpringTable,
         rows: &[usize],

@@ -89,7 +89,7 @@ impl Stiffness {
 /// row by row, each entry as the byte offset of its point (its [`point_slot`] times 16, flags
 /// kept): the kernels then read row after row with no lookup, no branch and no shift per
 /// lane, which took the irregular bench mesh's steps from 0.24 to 0.22 ms (gather) and from
-/// 0.37 to 0.29 ms (scatter; see the README).
+/// 0.37 to 0.29 ms (scatter; see the performance log).
 #[derive(Clone, Debug, Default)]
 pub struct IndexRows {
     /// Per row: its lane-0 entry if contiguous, else its position in `gathered`. When the

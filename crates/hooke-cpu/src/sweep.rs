@@ -54,8 +54,8 @@ use crate::{CpuSolver, Topology};
 
 /// Steps per sweep at most. Four halve what two stream from memory again; six took 1-13% off
 /// the 2048^2 grid's gather step in four pairs of runs on an Intel VM (no change beyond its
-/// noise at the other sizes), eight nothing on an AMD one (see the README). A mesh sweeps as
-/// many as leave each thread a band (see [`Sweep::of`]), and so do scatter's blocks.
+/// noise at the other sizes), eight nothing on an AMD one (see the performance log). A mesh
+/// sweeps as many as leave each thread a band (see [`Sweep::of`]), and so do scatter's blocks.
 pub(crate) const DEPTH: usize = 6;
 
 /// Slices that step 1 advances by at a time: 2,048 vertices, so the slices every step of the
@@ -66,8 +66,8 @@ const ADVANCE: usize = 256;
 /// Slices a mesh needs at least for a sweep to pay: 65,536 vertices. On an Intel Xeon VM with
 /// 2 MiB of L2 a core, the irregular bench mesh of 65,536 vertices (8.5 MiB a step) took
 /// 0.23-0.24 ms a step sweeping against 0.26-0.28 without, and the 256^2 grid 0.152-0.157
-/// against 0.161-0.162 (see the README); at 16,384 vertices, where a step's working set
-/// stays in the caches, the 128^2 grid's step took 0.07 ms sweeping against 0.04.
+/// against 0.161-0.162 (see the performance log); at 16,384 vertices, where a step's working
+/// set stays in the caches, the 128^2 grid's step took 0.07 ms sweeping against 0.04.
 const MIN_SLICES: usize = 8_192;
 
 /// How a mesh sweeps: the reach of its springs, the bands its slices are cut into and how far

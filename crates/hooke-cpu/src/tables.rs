@@ -98,7 +98,7 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
 /// 2048^2 against 1.06-1.10x at 512^2 (the two kernels' `perf` samples, one thread), and the
 /// scatter step grew 1.13-1.28x per spring from 512^2 to 2048^2. With 1,056 (groups two
 /// cache lines apart modulo 4 KiB) the summing takes 0.95-1.04x the force pass at every
-/// size, and the step grows 0.99-1.02x per spring (see the README). 1,024 since 2026-12-02
+/// size, and the step grows 0.99-1.02x per spring (see the performance log). 1,024 since 2026-12-02
 /// (4,096 before), so that a mesh of 65,536 vertices has blocks enough for a band per
 /// thread.
 pub(crate) const SPRING_BLOCK: u32 = 1056;

@@ -61,7 +61,7 @@ pub const PATCH: usize = 64;
 /// tested), but more vertices are pushed past it and widen the suspects. An eighth since
 /// 2026-12-03 (a quarter before): on an Intel Xeon VM, `hooke bench`'s self-collision row
 /// came to a median of 2.28x the plain step at 128^2 against 3.16, and 3.17x at 512^2
-/// against 3.57 (eight runs each); a sixteenth was no better (see the README).
+/// against 3.57 (eight runs each); a sixteenth was no better (see the performance log).
 pub const MARGIN: f32 = 0.125;
 
 /// What [`Culling::prove`] showed of one step's positions.

@@ -13,7 +13,7 @@
 //! integration adds): 3 atomic adds a spring instead of 6. (Until 2026-12-02 it added that
 //! sum atomically, 4 a spring; with the store, atomic-f32's step on lavapipe was faster in 6
 //! and 7 of 7 paired runs at 256^2 and 512^2, by 6% and 4% median against median: see the
-//! README.)
+//! performance log.)
 
 use super::ScatterBuffers;
 use crate::context::{GpuContext, GpuError};
