@@ -404,6 +404,10 @@ pub const B_END: u32 = 0x8000_0000;
 pub struct IncidenceTable {
     pub slices: Slices,
     pub entry: IndexRows,
+    /// Per slice, how many of its last rows are whole rows of the force pass, in order, each
+    /// lane's spring in its own lane and owned by it (no [`B_END`]): the summing from points
+    /// loads such a row with 4 vector loads instead of 8 point loads, inserts and signs.
+    pub tails: Vec<u8>,
 }
 
 /// Per-vertex integration constants (see the module docs).
@@ -657,11 +661,25 @@ fn accumulate_points_slice<S: Simd>(
     };
     let rows = table.slices.rows(slice);
     if let Some(offsets) = table.entry.point_offsets() {
-        for offsets in &offsets[rows] {
+        let tail = usize::from(table.tails[slice]);
+        let (gathered, whole) = offsets[rows.clone()].split_at(rows.len() - tail);
+        for offsets in gathered {
             // SAFETY: `IndexRows::new` made the offsets from spring slots below the force
             // buffer's length (the springs' rows and one row of zeros for padding).
             let f = unsafe { points.point_pairs_at(simd, offsets, !B_END) };
             sum = add(sum, f, simd.pair_signs(offsets));
+        }
+        for offsets in whole {
+            // SAFETY: a tail's row is a whole row of spring slots in order, owned by its lanes
+            // (`IncidenceTable::tails`), so its first offset starts 8 points in bounds.
+            let f = unsafe { points.point_pairs_run(simd, offsets[0]) };
+            // Adding a force owned by the lane is what `add_signed` does with a sign of +1.
+            sum = [
+                simd.add(sum[0], f[0]),
+                simd.add(sum[1], f[1]),
+                simd.add(sum[2], f[2]),
+                simd.add(sum[3], f[3]),
+            ];
         }
         return simd.transpose_point_pairs(sum);
     }
@@ -1305,6 +1323,7 @@ mod tests {
                 slice_rows: slice_rows.clone(),
             },
             entry: IndexRows::new(rows.clone(), !B_END, slots as usize, form),
+            tails: vec![0; widths.len()],
         };
         let (offsets, entries) = (table(RowForm::Points), table(RowForm::Runs));
         assert!(offsets.entry.point_offsets().is_some() && entries.entry.point_offsets().is_none());

@@ -64,6 +64,10 @@ pub struct Numbering {
     /// numbering sums alike and gives the same bits; on a grid numbered row by row it is the
     /// model's own order.
     pub entries: Vec<u32>,
+    /// Length `n_vertices`, by model vertex: how many of its neighbours lie after it in that
+    /// order of places, which are the last of its `entries`. Scatter's summing loads such
+    /// springs a row at a time where a slice's vertices own equally many (`tables`).
+    pub later: Vec<u32>,
     /// Vertex count rounded up to whole slices; the extra lanes are inert padding vertices.
     pub padded_len: usize,
 }
@@ -80,7 +84,9 @@ const SCATTERED_FRACTION: f64 = 0.05;
 /// more than [`PADDED_FRACTION`] (SELL-C-sigma): a slice's 8 vertices then have nearly equal
 /// valences, so few entries are padding, while vertices move at most a window away, so
 /// neighbours stay nearly as close in memory as before. A grid's slices are barely padded
-/// (only its border has other valences) and are left alone.
+/// (only its border has other valences) and are left alone. Within a valence, vertices are
+/// sorted by their neighbours later in place ([`Numbering::later`]), so that a slice's
+/// vertices have equally many of those too (see `tables`).
 pub const VALENCE_WINDOW: usize = 256;
 const PADDED_FRACTION: f64 = 0.1;
 
@@ -108,10 +114,22 @@ impl Numbering {
         }
         let adjacency = &model.adjacency;
         let valence = |v: u32| adjacency.valence(v as usize);
+        let later: Vec<u32> = (0..n as u32)
+            .map(|v| {
+                let neighbors = &adjacency.neighbors[adjacency.range(v as usize)];
+                let after = neighbors.iter().filter(|&&w| by_place(v, w).is_lt());
+                after.count() as u32
+            })
+            .collect();
         let valence_windows = automatic && padded_fraction(&original, &valence) > PADDED_FRACTION;
         if valence_windows {
             for window in original.chunks_mut(VALENCE_WINDOW) {
-                window.sort_by_key(|&v| std::cmp::Reverse(valence(v)));
+                window.sort_by_key(|&v| {
+                    (
+                        std::cmp::Reverse(valence(v)),
+                        std::cmp::Reverse(later[v as usize]),
+                    )
+                });
             }
         }
         let mut entries: Vec<u32> = (0..adjacency.neighbors.len() as u32).collect();
@@ -134,6 +152,7 @@ impl Numbering {
             original,
             internal,
             entries,
+            later,
             padded_len: n.div_ceil(LANES) * LANES,
         }
     }
@@ -229,6 +248,21 @@ impl Slices {
         fill: impl Fn(usize, usize) -> T,
         pad: impl Fn(usize) -> T,
     ) -> (Self, Vec<T>) {
+        Self::build_with_tails(model, numbering, fill, pad, |_| 0)
+    }
+
+    /// [`Slices::build`] with the last `tail(slice)` rows of each slice holding each vertex's
+    /// last `tail(slice)` entries (none may have fewer), its padding put before them. A lane
+    /// then adds the same values in the same order, and its padding's zero forces (`+0`)
+    /// elsewhere, which gives the same bits: a sum starts at `+0`, so it is never `-0` (only
+    /// `-0 + -0` is), and `+0` added to anything else leaves it as it is.
+    pub fn build_with_tails<T: Copy>(
+        model: &Model,
+        numbering: &Numbering,
+        fill: impl Fn(usize, usize) -> T,
+        pad: impl Fn(usize) -> T,
+        tail: impl Fn(usize) -> usize,
+    ) -> (Self, Vec<T>) {
         let n = model.vertex_count();
         let mut slice_rows = Vec::with_capacity(numbering.slice_count() + 1);
         let mut entries = Vec::with_capacity(2 * model.spring_count() + LANES * 8);
@@ -242,12 +276,21 @@ impl Slices {
                 .map(|v| model.adjacency.valence(v) as usize)
                 .max()
                 .unwrap_or(0);
+            let tail = tail(slice);
             for row in 0..width {
                 for k in vertices.clone() {
                     let entry = original(k)
                         .map(|v| model.adjacency.range(v))
-                        .filter(|range| row < range.len())
-                        .map(|range| fill(k, numbering.entries[range.start + row] as usize));
+                        .and_then(|range| {
+                            // Row `row` of `width` holds entry `row`, or in the tail one from the end.
+                            let from_end = width - row;
+                            let at = if from_end <= tail {
+                                range.len().checked_sub(from_end)
+                            } else {
+                                Some(row).filter(|&r| r + tail < range.len())
+                            };
+                            at.map(|at| fill(k, numbering.entries[range.start + at] as usize))
+                        });
                     entries.push(entry.unwrap_or_else(|| pad(k)));
                 }
             }

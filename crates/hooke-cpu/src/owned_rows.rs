@@ -10,6 +10,14 @@
 //! within a block so that each slice's vertices own nearly equal numbers (the same for all
 //! eight where it can), and [`rows`] lays out each block's slices' full rows, then the
 //! springs left over, ordered by first end.
+//!
+//! **Tails.** Every method sums a vertex's springs in one order, by where the neighbour lies
+//! (`Numbering::entries`), so its neighbours later in that order come last. Where each vertex
+//! of a slice owns the last `m` of its springs, the slice's first `m` rows are those springs
+//! in that order, and scatter's summing takes them as whole rows of forces, in lane order,
+//! instead of gathering them lane by lane ([`Tails`]). So a vertex owns its later neighbours'
+//! springs where the block rule lets it (their order in place does not follow the numbering),
+//! and they are not re-owned.
 
 use hooke_core::Adjacency;
 
@@ -20,13 +28,64 @@ use crate::tables::{SPRING_BLOCK, Slot};
 /// short and their cost linear in the mesh.
 const SEARCH_LIMIT: usize = 256;
 
+/// Per (internal) vertex, the springs to its neighbours later in place, in the order it sums
+/// them (see the module docs), each with the internal index of its other end.
+pub(crate) struct Later {
+    /// Length `vertices + 1`.
+    pub start: Vec<u32>,
+    /// `(spring, other end)`.
+    pub springs: Vec<(u32, u32)>,
+}
+
+impl Later {
+    fn of(&self, v: usize) -> &[(u32, u32)] {
+        &self.springs[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+}
+
+/// Per slice, how many of its first force rows hold the last springs its vertices sum, in
+/// lane order (see the module docs).
+pub(crate) type Tails = Vec<u8>;
+
 /// The slots of `ends`' springs (each `[owner, other]`, re-owned in place) in rows of
-/// slices' own springs, block by block; `vertices` is the padded vertex count.
-pub(crate) fn order(ends: &mut [[u32; 2]], vertices: usize) -> Vec<Slot> {
+/// slices' own springs, block by block, and each slice's tail; `vertices` is the padded
+/// vertex count.
+pub(crate) fn order(ends: &mut [[u32; 2]], vertices: usize, later: &Later) -> (Vec<Slot>, Tails) {
+    let (tails, fixed) = tails(ends, vertices, later);
     // Who owns a spring changes below, which vertices it joins does not.
     let adjacency = Adjacency::from_springs(vertices, ends);
-    balance(ends, &adjacency);
-    rows(ends, &adjacency)
+    balance(ends, &adjacency, &fixed);
+    (rows(ends, &adjacency, later, &tails, &fixed), tails)
+}
+
+/// Each slice's tail, its springs given to its vertices, and which springs those are.
+fn tails(ends: &mut [[u32; 2]], vertices: usize, later: &Later) -> (Tails, Vec<bool>) {
+    // A vertex may own the last of its later springs as long as none crosses into a lower
+    // block (its other end's block would then own it).
+    let ownable = |v: usize| {
+        let springs = later.of(v);
+        let crossing = springs
+            .iter()
+            .rposition(|&(_, w)| block_of(w) < block_of(v as u32));
+        springs.len() - crossing.map_or(0, |at| at + 1)
+    };
+    let tails: Tails = (0..vertices / LANES)
+        .map(|s| {
+            let m = (s * LANES..(s + 1) * LANES).map(ownable).min().unwrap_or(0);
+            m.min(u8::MAX as usize) as u8
+        })
+        .collect();
+    let mut fixed = vec![false; ends.len()];
+    for (s, &m) in tails.iter().enumerate() {
+        for v in s * LANES..(s + 1) * LANES {
+            let springs = later.of(v);
+            for &(spring, w) in &springs[springs.len() - m as usize..] {
+                ends[spring as usize] = [v as u32, w];
+                fixed[spring as usize] = true;
+            }
+        }
+    }
+    (tails, fixed)
 }
 
 fn block_of(v: u32) -> u32 {
@@ -43,7 +102,7 @@ fn is_free([a, b]: [u32; 2]) -> bool {
 /// slice's lowest, then one more where every vertex of the slice finds one. A vertex short of
 /// its target takes a spring from a neighbour with one to spare, or along a path of owners
 /// (each passes one on), so nobody falls below their own target.
-fn balance(ends: &mut [[u32; 2]], adjacency: &Adjacency) {
+fn balance(ends: &mut [[u32; 2]], adjacency: &Adjacency, fixed: &[bool]) {
     let vertices = adjacency.offsets.len() - 1;
     let springs_at = |v: usize| adjacency.range(v).map(|e| adjacency.springs[e] as usize);
     let mut owned = vec![0u32; vertices];
@@ -52,7 +111,8 @@ fn balance(ends: &mut [[u32; 2]], adjacency: &Adjacency) {
     }
     // What a vertex may own: the springs within its block, and those across blocks it owns.
     let most = |v: usize| {
-        let may_own = springs_at(v).filter(|&s| is_free(ends[s]) || ends[s][0] as usize == v);
+        let may_own =
+            springs_at(v).filter(|&s| (is_free(ends[s]) && !fixed[s]) || ends[s][0] as usize == v);
         (may_own.count() as u32).min(adjacency.valence(v) / 2)
     };
     let mut target = vec![0u32; vertices];
@@ -63,7 +123,7 @@ fn balance(ends: &mut [[u32; 2]], adjacency: &Adjacency) {
     let mut search = Search::new(vertices);
     for v in 0..vertices as u32 {
         while owned[v as usize] < target[v as usize] {
-            if !search.take_one(v, ends, adjacency, &mut owned, &target) {
+            if !search.take_one(v, ends, adjacency, fixed, &mut owned, &target) {
                 break;
             }
         }
@@ -77,7 +137,8 @@ fn balance(ends: &mut [[u32; 2]], adjacency: &Adjacency) {
         let raised = target[s * LANES] + 1;
         target[lanes.clone()].fill(raised);
         let all = lanes.clone().all(|v| {
-            owned[v] >= raised || search.take_one(v as u32, ends, adjacency, &mut owned, &target)
+            owned[v] >= raised
+                || search.take_one(v as u32, ends, adjacency, fixed, &mut owned, &target)
         });
         if !all {
             target[lanes].fill(raised - 1);
@@ -112,6 +173,7 @@ impl Search {
         v: u32,
         ends: &mut [[u32; 2]],
         adjacency: &Adjacency,
+        fixed: &[bool],
         owned: &mut [u32],
         target: &[u32],
     ) -> bool {
@@ -125,7 +187,10 @@ impl Search {
             head += 1;
             for &s in &adjacency.springs[adjacency.range(u as usize)] {
                 let [owner, other] = ends[s as usize];
-                if other != u || !is_free([owner, other]) || self.seen[owner as usize] == self.epoch
+                if other != u
+                    || !is_free([owner, other])
+                    || fixed[s as usize]
+                    || self.seen[owner as usize] == self.epoch
                 {
                     continue;
                 }
@@ -152,18 +217,25 @@ impl Search {
     }
 }
 
-/// Block by block: for each slice, as many rows as its vertices all own springs (row `k`
-/// holding each vertex's `k`-th, by far end), then the block's springs left over by first
-/// end and far end, padded to a whole row so that the next block's rows start whole.
-fn rows(ends: &[[u32; 2]], adjacency: &Adjacency) -> Vec<Slot> {
+/// Block by block: for each slice, its tail's rows (row `r` holding each vertex's `r`-th of
+/// its last `tail` springs), then as many rows as its vertices all own other springs (row `k`
+/// holding each vertex's `k`-th, by far end), then the block's springs left over by first end
+/// and far end, padded to a whole row so that the next block's rows start whole.
+fn rows(
+    ends: &[[u32; 2]],
+    adjacency: &Adjacency,
+    later: &Later,
+    tails: &Tails,
+    fixed: &[bool],
+) -> Vec<Slot> {
     let vertices = adjacency.offsets.len() - 1;
-    // Each vertex's own springs, by far end.
+    // Each vertex's own springs but its tail's, by far end.
     let mut start = vec![0usize];
     let mut owned = Vec::with_capacity(ends.len());
     for v in 0..vertices {
         let first = owned.len();
         let springs = adjacency.springs[adjacency.range(v)].iter();
-        owned.extend(springs.filter(|&&s| ends[s as usize][0] as usize == v));
+        owned.extend(springs.filter(|&&s| ends[s as usize][0] as usize == v && !fixed[s as usize]));
         owned[first..].sort_by_key(|&s| ends[s as usize][1]);
         start.push(owned.len());
     }
@@ -175,6 +247,13 @@ fn rows(ends: &[[u32; 2]], adjacency: &Adjacency) -> Vec<Slot> {
         let mut full = vec![0usize; block_vertices.len()];
         for s in block_vertices.clone().step_by(LANES) {
             let lanes = s..s + LANES;
+            let tail = usize::from(tails[s / LANES]);
+            for r in 0..tail {
+                slots.extend(lanes.clone().map(|v| {
+                    let springs = later.of(v);
+                    Slot::Spring(springs[springs.len() - tail + r].0)
+                }));
+            }
             let m = lanes
                 .clone()
                 .map(|v| springs_of(v).len())
@@ -204,14 +283,32 @@ fn rows(ends: &[[u32; 2]], adjacency: &Adjacency) -> Vec<Slot> {
 mod tests {
     use super::*;
 
+    /// A strip of triangles, vertex v joined to v + 1 and v + 2 (springs `2v` and `2v + 1`),
+    /// and no springs later in place, or those two, in that order.
+    fn strip(n: u32, with_later: bool) -> (Vec<[u32; 2]>, Later) {
+        let ends: Vec<[u32; 2]> = (0..n - 2).flat_map(|v| [[v, v + 1], [v, v + 2]]).collect();
+        let mut later = Later {
+            start: vec![0],
+            springs: Vec::new(),
+        };
+        for v in 0..n {
+            if with_later {
+                let joined = (1..=2).filter(|d| v + d < n);
+                later.springs.extend(joined.map(|d| (2 * v + d - 1, v + d)));
+            }
+            later.start.push(later.springs.len() as u32);
+        }
+        (ends, later)
+    }
+
     /// Every spring keeps its two ends, and one crossing blocks stays with the lower.
     #[test]
     fn balancing_only_re_owns_springs_within_blocks() {
         let n = 2 * SPRING_BLOCK;
-        // A strip of triangles: vertex v joined to v + 1 and v + 2.
-        let mut ends: Vec<[u32; 2]> = (0..n - 2).flat_map(|v| [[v, v + 1], [v, v + 2]]).collect();
+        let (mut ends, later) = strip(n, false);
         let before = ends.clone();
-        let slots = order(&mut ends, n as usize);
+        let (slots, tails) = order(&mut ends, n as usize, &later);
+        assert!(tails.iter().all(|&t| t == 0));
         for (e, b) in ends.iter().zip(&before) {
             let (mut e, mut b) = (*e, *b);
             if block_of(b[0]) != block_of(b[1]) {
@@ -252,5 +349,34 @@ mod tests {
             full_rows * LANES * 10 >= ends.len() * 9,
             "{full_rows} full rows"
         );
+    }
+
+    /// Each slice's vertices own their later springs, laid out as its first rows in lane
+    /// order, where no later spring reaches into a lower block (none does in a strip).
+    #[test]
+    fn tails_are_each_slices_later_springs_in_lane_order() {
+        let n = 2 * SPRING_BLOCK;
+        let (mut ends, later) = strip(n, true);
+        let (slots, tails) = order(&mut ends, n as usize, &later);
+        let slices = n as usize / LANES;
+        // The last vertex has no later neighbour.
+        assert!(tails[..slices - 1].iter().all(|&t| t == 2), "{tails:?}");
+        assert_eq!(tails[slices - 1], 0);
+        let mut row = 0;
+        for (s, &tail) in tails[..slices - 1].iter().enumerate() {
+            // The slice's rows start where its lanes' first spring is.
+            while !matches!(slots[row * LANES], Slot::Spring(x) if ends[x as usize][0] as usize == s * LANES)
+            {
+                row += 1;
+            }
+            for r in 0..usize::from(tail) {
+                for lane in 0..LANES {
+                    let v = (s * LANES + lane) as u32;
+                    let spring = 2 * v + r as u32;
+                    assert_eq!(slots[(row + r) * LANES + lane], Slot::Spring(spring));
+                    assert_eq!(ends[spring as usize], [v, v + 1 + r as u32]);
+                }
+            }
+        }
     }
 }

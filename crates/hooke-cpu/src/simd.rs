@@ -96,6 +96,12 @@ pub trait Simd: Copy {
         offsets: &[u32; LANES],
         mask: u32,
     ) -> [Self::V; 4];
+    /// The 8 points of a group stored in [`point_slot`] order from byte offset `offset` of
+    /// `points`, two to a value as [`Simd::point_pairs_at`] gives them: four plain loads.
+    ///
+    /// # Safety
+    /// The 128 bytes from `offset` must be in bounds and not written.
+    unsafe fn point_pairs_run(self, points: *const Point, offset: u32) -> [Self::V; 4];
     /// x, y and z of the 8 points held two to a value (see [`Simd::point_pairs_at`]).
     fn transpose_point_pairs(self, pairs: [Self::V; 4]) -> [Self::V; 3];
     /// Per value of [`Simd::point_pairs_at`], -1 in the words of each point whose lane's
@@ -166,6 +172,16 @@ impl Simd for Portable {
             let (low, high) = (at(k), at(k + 4));
             std::array::from_fn(|word| if word < 4 { low[word] } else { high[word - 4] })
         })
+    }
+    #[inline(always)]
+    unsafe fn point_pairs_run(self, points: *const Point, offset: u32) -> [Block; 4] {
+        // SAFETY: the caller's guarantee; 4 blocks are the 8 points' 128 bytes.
+        unsafe {
+            *points
+                .cast::<u8>()
+                .add(offset as usize)
+                .cast::<[Block; 4]>()
+        }
     }
     #[inline(always)]
     fn transpose_point_pairs(self, pairs: [Block; 4]) -> [Block; 3] {
@@ -386,6 +402,19 @@ mod avx2 {
                     )
                 };
                 [pair(0, 4), pair(1, 5), pair(2, 6), pair(3, 7)]
+            }
+        }
+        #[inline(always)]
+        unsafe fn point_pairs_run(self, points: *const Point, offset: u32) -> [__m256; 4] {
+            // SAFETY: the caller guarantees the 128 bytes are in bounds.
+            unsafe {
+                let base = points.cast::<u8>().add(offset as usize).cast::<f32>();
+                [
+                    _mm256_loadu_ps(base),
+                    _mm256_loadu_ps(base.add(8)),
+                    _mm256_loadu_ps(base.add(16)),
+                    _mm256_loadu_ps(base.add(24)),
+                ]
             }
         }
         #[inline(always)]

@@ -128,6 +128,17 @@ impl<'a> Points<'a> {
         unsafe { simd.gather_points_at(self.start, offsets, mask) }
     }
 
+    /// The 8 points stored from byte offset `offset`, two to a value (see
+    /// [`Simd::point_pairs_run`]).
+    ///
+    /// # Safety
+    /// `offset` must be a multiple of 16, with 8 points from it within the view.
+    #[inline(always)]
+    pub unsafe fn point_pairs_run<S: Simd>(&self, simd: S, offset: u32) -> [S::V; 4] {
+        // SAFETY: in bounds by the caller's guarantee; not written while the view lives.
+        unsafe { simd.point_pairs_run(self.start, offset) }
+    }
+
     /// The points at byte offsets `offsets[lane] & mask`, two to a value (see
     /// [`Simd::point_pairs_at`]).
     ///
