@@ -446,11 +446,11 @@ impl InstructionSet {
     }
 }
 
-/// Defines a public kernel that runs `generic` with AVX2 when available and allowed.
+/// Defines a kernel that runs `generic` with AVX2 when available and allowed.
 macro_rules! dispatch {
-    ($(#[$doc:meta])* pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $generic:ident) => {
+    ($(#[$doc:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $generic:ident) => {
         $(#[$doc])*
-        pub fn $name(isa: InstructionSet, $($arg: $ty),*) -> $ret {
+        $vis fn $name(isa: InstructionSet, $($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             if let (InstructionSet::Best, Some(avx2)) = (isa, Avx2::detect()) {
                 #[target_feature(enable = "avx2,bmi1,fma")]
@@ -1000,8 +1000,68 @@ dispatch! {
 }
 
 #[inline(always)]
-fn accumulate_and_integrate_with<S: Simd>(
+fn accumulate_axes_and_integrate_with<S: Simd>(
     simd: S,
+    table: &IncidenceTable,
+    spring_forces: [Floats<'_>; 3],
+    integrator: &Integrator,
+    current: Positions<'_>,
+    extra: Option<&Soa>,
+    chunk: VertexChunk<'_>,
+) -> bool {
+    let forces = Accumulated {
+        table,
+        spring_forces,
+    };
+    integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
+}
+
+#[inline(always)]
+fn accumulate_points_and_integrate_with<S: Simd>(
+    simd: S,
+    table: &IncidenceTable,
+    spring_forces: Points<'_>,
+    integrator: &Integrator,
+    current: Positions<'_>,
+    extra: Option<&Soa>,
+    chunk: VertexChunk<'_>,
+) -> bool {
+    let forces = AccumulatedPoints {
+        table,
+        spring_forces,
+    };
+    integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
+}
+
+dispatch! {
+    /// [`accumulate_and_integrate`] from forces kept in three axes.
+    fn accumulate_axes_and_integrate(
+        table: &IncidenceTable,
+        spring_forces: [Floats<'_>; 3],
+        integrator: &Integrator,
+        current: Positions<'_>,
+        extra: Option<&Soa>,
+        chunk: VertexChunk<'_>,
+    ) -> bool => accumulate_axes_and_integrate_with
+}
+
+dispatch! {
+    /// [`accumulate_and_integrate`] from one point per spring slot.
+    fn accumulate_points_and_integrate(
+        table: &IncidenceTable,
+        spring_forces: Points<'_>,
+        integrator: &Integrator,
+        current: Positions<'_>,
+        extra: Option<&Soa>,
+        chunk: VertexChunk<'_>,
+    ) -> bool => accumulate_points_and_integrate_with
+}
+
+/// Scatter (ECA) accumulation by incidence, fused with Verlet: each vertex sums the
+/// precomputed forces of its springs in a fixed order (deterministic for any thread count),
+/// then integrates.
+pub fn accumulate_and_integrate(
+    isa: InstructionSet,
     table: &IncidenceTable,
     spring_forces: ForcesView<'_>,
     integrator: &Integrator,
@@ -1009,36 +1069,17 @@ fn accumulate_and_integrate_with<S: Simd>(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
+    // A kernel for each layout of the forces: compiled as one function, the points' loop
+    // (its tails) cost the axes' loop a base address reloaded from the stack every row, and
+    // a grid's scatter step 2-3% (see the performance log).
     match spring_forces {
-        ForcesView::Axes(spring_forces) => {
-            let forces = Accumulated {
-                table,
-                spring_forces,
-            };
-            integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
+        ForcesView::Axes(forces) => {
+            accumulate_axes_and_integrate(isa, table, forces, integrator, current, extra, chunk)
         }
-        ForcesView::Points(spring_forces) => {
-            let forces = AccumulatedPoints {
-                table,
-                spring_forces,
-            };
-            integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
+        ForcesView::Points(forces) => {
+            accumulate_points_and_integrate(isa, table, forces, integrator, current, extra, chunk)
         }
     }
-}
-
-dispatch! {
-    /// Scatter (ECA) accumulation by incidence, fused with Verlet: each vertex sums the
-    /// precomputed forces of its springs in a fixed order (deterministic for any thread count),
-    /// then integrates.
-    pub fn accumulate_and_integrate(
-        table: &IncidenceTable,
-        spring_forces: ForcesView<'_>,
-        integrator: &Integrator,
-        current: Positions<'_>,
-        extra: Option<&Soa>,
-        chunk: VertexChunk<'_>,
-    ) -> bool => accumulate_and_integrate_with
 }
 
 /// The forces of spring row `row` on its `a` ends.
