@@ -351,7 +351,8 @@ impl CpuSolver {
                     + springs.rest_length.bytes()
                     + springs.stiffness.bytes()
                     + incidence.entry.bytes()
-                    + std::mem::size_of_val(incidence.slices.slice_rows.as_slice()),
+                    + std::mem::size_of_val(incidence.slices.slice_rows.as_slice())
+                    + incidence.tails.len(),
                 spring_forces.bytes(),
             ),
         };
