@@ -1327,9 +1327,10 @@ mod tests {
     use super::*;
     use crate::simd::point_slot;
 
-    /// The summing from point offsets and, where they would not fit (a mesh of some 2^27
-    /// spring slots), from the rows' entries: the same sums, bit for bit, with either
-    /// instruction set, and those of flipping each far end's force and adding it.
+    /// The summing from point offsets, with or without taking its tails' rows whole, and,
+    /// where they would not fit (a mesh of some 2^27 spring slots), from the rows' entries:
+    /// the same sums, bit for bit, with either instruction set, and those of flipping each
+    /// far end's force and adding it.
     #[test]
     fn irregular_summing_gives_the_same_sums_from_offsets_or_entries() {
         let slots = 40 * LANES as u32;
@@ -1342,11 +1343,20 @@ mod tests {
             }
         };
         let widths = [3usize, 5, 1, 6];
+        // Slice 1's last two rows are force rows 10 and 11 whole, slice 3's last row 20.
+        let tails = vec![0u8, 2, 0, 1];
+        let whole_rows = [[0, 0], [10, 11], [0, 0], [20, 0]];
         let mut slice_rows = vec![0u32];
         let mut rows = Vec::new();
         for (slice, width) in widths.iter().enumerate() {
             for row in 0..*width {
-                rows.push(std::array::from_fn(|lane| entry(slice, row, lane)));
+                let tail = usize::from(tails[slice]);
+                rows.push(match (row + tail).checked_sub(*width) {
+                    Some(k) => {
+                        std::array::from_fn(|lane| (whole_rows[slice][k] * LANES + lane) as u32)
+                    }
+                    None => std::array::from_fn(|lane| entry(slice, row, lane)),
+                });
             }
             slice_rows.push(rows.len() as u32);
         }
@@ -1359,14 +1369,19 @@ mod tests {
             })
             .collect();
         let view = ForcesView::Points(Points::new(forces.as_flattened()));
-        let table = |form| IncidenceTable {
+        let table = |form, tails: &Vec<u8>| IncidenceTable {
             slices: Slices {
                 slice_rows: slice_rows.clone(),
             },
             entry: IndexRows::new(rows.clone(), !B_END, slots as usize, form),
-            tails: vec![0; widths.len()],
+            tails: tails.clone(),
         };
-        let (offsets, entries) = (table(RowForm::Points), table(RowForm::Runs));
+        let no_tails = vec![0; widths.len()];
+        let (offsets, whole, entries) = (
+            table(RowForm::Points, &no_tails),
+            table(RowForm::Points, &tails),
+            table(RowForm::Runs, &no_tails),
+        );
         assert!(offsets.entry.point_offsets().is_some() && entries.entry.point_offsets().is_none());
         let sums = |table: &IncidenceTable, isa| {
             let mut out = vec![[0.0; LANES]; 3 * widths.len()];
@@ -1381,7 +1396,7 @@ mod tests {
         };
         let expected = sums(&offsets, InstructionSet::Portable);
         for isa in [InstructionSet::Best, InstructionSet::Portable] {
-            for table in [&offsets, &entries] {
+            for table in [&offsets, &whole, &entries] {
                 let got = sums(table, isa);
                 let bits =
                     |v: &Vec<Block>| v.iter().flatten().map(|f| f.to_bits()).collect::<Vec<_>>();
