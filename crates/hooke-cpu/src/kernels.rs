@@ -999,62 +999,39 @@ dispatch! {
     ) -> bool => gather_and_integrate_with
 }
 
+/// Integrates a chunk from the forces `forces` sums.
 #[inline(always)]
-fn accumulate_axes_and_integrate_with<S: Simd>(
+fn integrate_summed<S: Simd, F: SliceForces>(
     simd: S,
-    table: &IncidenceTable,
-    spring_forces: [Floats<'_>; 3],
+    forces: F,
     integrator: &Integrator,
     current: Positions<'_>,
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    let forces = Accumulated {
-        table,
-        spring_forces,
-    };
-    integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
-}
-
-#[inline(always)]
-fn accumulate_points_and_integrate_with<S: Simd>(
-    simd: S,
-    table: &IncidenceTable,
-    spring_forces: Points<'_>,
-    integrator: &Integrator,
-    current: Positions<'_>,
-    extra: Option<&Soa>,
-    chunk: VertexChunk<'_>,
-) -> bool {
-    let forces = AccumulatedPoints {
-        table,
-        spring_forces,
-    };
     integrate_chunk::<S, false>(simd, integrator, current, extra, chunk, &forces)
 }
 
 dispatch! {
     /// [`accumulate_and_integrate`] from forces kept in three axes.
     fn accumulate_axes_and_integrate(
-        table: &IncidenceTable,
-        spring_forces: [Floats<'_>; 3],
+        forces: Accumulated<'_>,
         integrator: &Integrator,
         current: Positions<'_>,
         extra: Option<&Soa>,
         chunk: VertexChunk<'_>,
-    ) -> bool => accumulate_axes_and_integrate_with
+    ) -> bool => integrate_summed
 }
 
 dispatch! {
     /// [`accumulate_and_integrate`] from one point per spring slot.
     fn accumulate_points_and_integrate(
-        table: &IncidenceTable,
-        spring_forces: Points<'_>,
+        forces: AccumulatedPoints<'_>,
         integrator: &Integrator,
         current: Positions<'_>,
         extra: Option<&Soa>,
         chunk: VertexChunk<'_>,
-    ) -> bool => accumulate_points_and_integrate_with
+    ) -> bool => integrate_summed
 }
 
 /// Scatter (ECA) accumulation by incidence, fused with Verlet: each vertex sums the
@@ -1073,11 +1050,19 @@ pub fn accumulate_and_integrate(
     // (its tails) cost the axes' loop a base address reloaded from the stack every row, and
     // a grid's scatter step 2-3% (see the performance log).
     match spring_forces {
-        ForcesView::Axes(forces) => {
-            accumulate_axes_and_integrate(isa, table, forces, integrator, current, extra, chunk)
+        ForcesView::Axes(spring_forces) => {
+            let forces = Accumulated {
+                table,
+                spring_forces,
+            };
+            accumulate_axes_and_integrate(isa, forces, integrator, current, extra, chunk)
         }
-        ForcesView::Points(forces) => {
-            accumulate_points_and_integrate(isa, table, forces, integrator, current, extra, chunk)
+        ForcesView::Points(spring_forces) => {
+            let forces = AccumulatedPoints {
+                table,
+                spring_forces,
+            };
+            accumulate_points_and_integrate(isa, forces, integrator, current, extra, chunk)
         }
     }
 }
