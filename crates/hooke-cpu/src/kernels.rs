@@ -1013,20 +1013,9 @@ fn integrate_summed<S: Simd, F: SliceForces>(
 }
 
 dispatch! {
-    /// [`accumulate_and_integrate`] from forces kept in three axes.
-    fn accumulate_axes_and_integrate(
-        forces: Accumulated<'_>,
-        integrator: &Integrator,
-        current: Positions<'_>,
-        extra: Option<&Soa>,
-        chunk: VertexChunk<'_>,
-    ) -> bool => integrate_summed
-}
-
-dispatch! {
-    /// [`accumulate_and_integrate`] from one point per spring slot.
-    fn accumulate_points_and_integrate(
-        forces: AccumulatedPoints<'_>,
+    /// [`accumulate_and_integrate`] for one way of summing: a kernel of its own for each.
+    fn sum_and_integrate(
+        forces: impl SliceForces,
         integrator: &Integrator,
         current: Positions<'_>,
         extra: Option<&Soa>,
@@ -1046,23 +1035,24 @@ pub fn accumulate_and_integrate(
     extra: Option<&Soa>,
     chunk: VertexChunk<'_>,
 ) -> bool {
-    // A kernel for each layout of the forces: compiled as one function, the points' loop
-    // (its tails) cost the axes' loop a base address reloaded from the stack every row, and
-    // a grid's scatter step 2-3% (see the performance log).
+    // A kernel for each layout of the forces (`sum_and_integrate` is compiled once per type):
+    // compiled as one function, the points' loop (its tails) cost the axes' loop a base
+    // address reloaded from the stack every row, and a grid's scatter step 2-3% (see the
+    // performance log).
     match spring_forces {
         ForcesView::Axes(spring_forces) => {
             let forces = Accumulated {
                 table,
                 spring_forces,
             };
-            accumulate_axes_and_integrate(isa, forces, integrator, current, extra, chunk)
+            sum_and_integrate(isa, forces, integrator, current, extra, chunk)
         }
         ForcesView::Points(spring_forces) => {
             let forces = AccumulatedPoints {
                 table,
                 spring_forces,
             };
-            accumulate_points_and_integrate(isa, forces, integrator, current, extra, chunk)
+            sum_and_integrate(isa, forces, integrator, current, extra, chunk)
         }
     }
 }

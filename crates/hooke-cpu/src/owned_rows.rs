@@ -28,29 +28,19 @@ use crate::tables::{SPRING_BLOCK, Slot};
 /// short and their cost linear in the mesh.
 const SEARCH_LIMIT: usize = 256;
 
-/// Per (internal) vertex, the springs to its neighbours later in place, in the order it sums
-/// them (see the module docs), each with the internal index of its other end.
-pub(crate) struct Later {
-    /// Length `vertices + 1`.
-    pub start: Vec<u32>,
-    /// `(spring, other end)`.
-    pub springs: Vec<(u32, u32)>,
-}
-
-impl Later {
-    fn of(&self, v: usize) -> &[(u32, u32)] {
-        &self.springs[self.start[v] as usize..self.start[v + 1] as usize]
-    }
-}
-
 /// Per slice, how many of its first force rows hold the last springs its vertices sum, in
 /// lane order (see the module docs).
 pub(crate) type Tails = Vec<u8>;
 
 /// The slots of `ends`' springs (each `[owner, other]`, re-owned in place) in rows of
 /// slices' own springs, block by block, and each slice's tail; `vertices` is the padded
-/// vertex count.
-pub(crate) fn order(ends: &mut [[u32; 2]], vertices: usize, later: &Later) -> (Vec<Slot>, Tails) {
+/// vertex count, and `later` each (internal) vertex's springs to its neighbours later in
+/// place, in the order it sums them.
+pub(crate) fn order(
+    ends: &mut [[u32; 2]],
+    vertices: usize,
+    later: &Adjacency,
+) -> (Vec<Slot>, Tails) {
     let (tails, fixed) = tails(ends, vertices, later);
     // Who owns a spring changes below, which vertices it joins does not.
     let adjacency = Adjacency::from_springs(vertices, ends);
@@ -59,15 +49,15 @@ pub(crate) fn order(ends: &mut [[u32; 2]], vertices: usize, later: &Later) -> (V
 }
 
 /// Each slice's tail, its springs given to its vertices, and which springs those are.
-fn tails(ends: &mut [[u32; 2]], vertices: usize, later: &Later) -> (Tails, Vec<bool>) {
+fn tails(ends: &mut [[u32; 2]], vertices: usize, later: &Adjacency) -> (Tails, Vec<bool>) {
     // A vertex may own the last of its later springs as long as none crosses into a lower
     // block (its other end's block would then own it).
     let ownable = |v: usize| {
-        let springs = later.of(v);
-        let crossing = springs
+        let others = &later.neighbors[later.range(v)];
+        let crossing = others
             .iter()
-            .rposition(|&(_, w)| block_of(w) < block_of(v as u32));
-        springs.len() - crossing.map_or(0, |at| at + 1)
+            .rposition(|&w| block_of(w) < block_of(v as u32));
+        others.len() - crossing.map_or(0, |at| at + 1)
     };
     let tails: Tails = (0..vertices / LANES)
         .map(|s| {
@@ -78,10 +68,11 @@ fn tails(ends: &mut [[u32; 2]], vertices: usize, later: &Later) -> (Tails, Vec<b
     let mut fixed = vec![false; ends.len()];
     for (s, &m) in tails.iter().enumerate() {
         for v in s * LANES..(s + 1) * LANES {
-            let springs = later.of(v);
-            for &(spring, w) in &springs[springs.len() - m as usize..] {
-                ends[spring as usize] = [v as u32, w];
-                fixed[spring as usize] = true;
+            let range = later.range(v);
+            for e in range.end - usize::from(m)..range.end {
+                let spring = later.springs[e] as usize;
+                ends[spring] = [v as u32, later.neighbors[e]];
+                fixed[spring] = true;
             }
         }
     }
@@ -224,7 +215,7 @@ impl Search {
 fn rows(
     ends: &[[u32; 2]],
     adjacency: &Adjacency,
-    later: &Later,
+    later: &Adjacency,
     tails: &Tails,
     fixed: &[bool],
 ) -> Vec<Slot> {
@@ -249,10 +240,8 @@ fn rows(
             let lanes = s..s + LANES;
             let tail = usize::from(tails[s / LANES]);
             for r in 0..tail {
-                slots.extend(lanes.clone().map(|v| {
-                    let springs = later.of(v);
-                    Slot::Spring(springs[springs.len() - tail + r].0)
-                }));
+                let entry = |v: usize| later.range(v).end - tail + r;
+                slots.extend(lanes.clone().map(|v| Slot::Spring(later.springs[entry(v)])));
             }
             let m = lanes
                 .clone()
@@ -285,18 +274,21 @@ mod tests {
 
     /// A strip of triangles, vertex v joined to v + 1 and v + 2 (springs `2v` and `2v + 1`),
     /// and no springs later in place, or those two, in that order.
-    fn strip(n: u32, with_later: bool) -> (Vec<[u32; 2]>, Later) {
+    fn strip(n: u32, with_later: bool) -> (Vec<[u32; 2]>, Adjacency) {
         let ends: Vec<[u32; 2]> = (0..n - 2).flat_map(|v| [[v, v + 1], [v, v + 2]]).collect();
-        let mut later = Later {
-            start: vec![0],
+        let mut later = Adjacency {
+            offsets: vec![0],
+            neighbors: Vec::new(),
             springs: Vec::new(),
         };
         for v in 0..n {
             if with_later {
-                let joined = (1..=2).filter(|d| v + d < n);
-                later.springs.extend(joined.map(|d| (2 * v + d - 1, v + d)));
+                for d in (1..=2).filter(|d| v + d < n) {
+                    later.neighbors.push(v + d);
+                    later.springs.push(2 * v + d - 1);
+                }
             }
-            later.start.push(later.springs.len() as u32);
+            later.offsets.push(later.springs.len() as u32);
         }
         (ends, later)
     }

@@ -1,7 +1,7 @@
 //! The force tables of the two methods, built once from the model: gather's sliced-ELL
 //! adjacency, scatter's spring table and incidence table (see [`crate::kernels`]).
 
-use hooke_core::Model;
+use hooke_core::{Adjacency, Model};
 
 use crate::kernels::{
     B_END, GatherTable, IncidenceTable, IndexRows, RowForm, SpringForces, SpringTable, Stiffness,
@@ -132,7 +132,7 @@ pub(crate) enum Slot {
 fn spring_order(
     ends: &mut [[u32; 2]],
     vertices: usize,
-    later: impl FnOnce() -> owned_rows::Later,
+    later: impl FnOnce() -> Adjacency,
 ) -> (Vec<Slot>, owned_rows::Tails) {
     const MAX_CLASSES: usize = 16;
     let offset = |s: u32| i64::from(ends[s as usize][1]) - i64::from(ends[s as usize][0]);
@@ -163,23 +163,28 @@ fn spring_order(
     (order.into_iter().map(Slot::Spring).collect(), tails)
 }
 
-/// Per internal vertex, its springs to neighbours later in place, in the order it sums them.
-fn later_springs(model: &Model, numbering: &Numbering) -> owned_rows::Later {
+/// Per internal vertex, its springs to neighbours later in place, in the order it sums them,
+/// with the internal index of each other end.
+fn later_springs(model: &Model, numbering: &Numbering) -> Adjacency {
     let adjacency = &model.adjacency;
-    let mut start = vec![0u32];
-    let mut springs = Vec::with_capacity(model.spring_count());
+    let mut later = Adjacency {
+        offsets: vec![0],
+        neighbors: Vec::with_capacity(model.spring_count()),
+        springs: Vec::with_capacity(model.spring_count()),
+    };
     for k in 0..numbering.padded_len {
         if let Some(&v) = numbering.original.get(k) {
             let range = adjacency.range(v as usize);
             let first = range.end - numbering.later[v as usize] as usize;
-            springs.extend(numbering.entries[first..range.end].iter().map(|&e| {
-                let other = numbering.internal[adjacency.neighbors[e as usize] as usize];
-                (adjacency.springs[e as usize], other)
-            }));
+            for &e in &numbering.entries[first..range.end] {
+                let other = adjacency.neighbors[e as usize];
+                later.neighbors.push(numbering.internal[other as usize]);
+                later.springs.push(adjacency.springs[e as usize]);
+            }
         }
-        start.push(springs.len() as u32);
+        later.offsets.push(later.springs.len() as u32);
     }
-    owned_rows::Later { start, springs }
+    later
 }
 
 /// How the scatter force pass reads the springs: per model spring its ends (owner first),
