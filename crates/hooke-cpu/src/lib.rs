@@ -677,7 +677,7 @@ impl CpuSolver {
                 .par_iter_mut()
                 .zip(xs.par_iter().zip(ys.par_iter()).zip(zs.par_iter()))
                 .for_each(|(points, ((x, y), z))| {
-                    Portable.store_points([*x, *y, *z], points);
+                    Portable::<false>.store_points([*x, *y, *z], points);
                 });
             self.points_fresh = true;
         }
@@ -696,7 +696,7 @@ impl CpuSolver {
                     .zip(zs.par_iter_mut()),
             )
             .for_each(|(points, ((x, y), z))| {
-                [*x, *y, *z] = Portable.load_points(points);
+                [*x, *y, *z] = Portable::<false>.load_points(points);
             });
     }
 

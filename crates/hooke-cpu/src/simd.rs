@@ -1,9 +1,11 @@
 //! The few 8-lane float operations the kernels need, portable and with AVX2.
 //!
 //! Kernels are written once, generic over [`Simd`], and instantiated for each implementation.
-//! Every operation is exact IEEE arithmetic per lane (no approximate reciprocals, and the one
-//! fused multiply-add, [`Simd::add_signed`], multiplies by +1 or -1, an exact product), so both
-//! implementations produce bit-identical results.
+//! Every operation is exact IEEE arithmetic per lane (no approximate reciprocals; a fused
+//! multiply-add rounds once in both, [`Simd::mul_add`]), so both implementations produce
+//! bit-identical results. (A processor without FMA has no AVX2 either: there the portable
+//! kernels round a multiply-add's product too, and its states differ from other machines' in
+//! the last bits.)
 
 use crate::layout::LANES;
 
@@ -122,6 +124,11 @@ pub trait Simd: Copy {
     fn mul(self, a: Self::V, b: Self::V) -> Self::V;
     fn div(self, a: Self::V, b: Self::V) -> Self::V;
     fn sqrt(self, a: Self::V) -> Self::V;
+    /// `a * b + c`, rounded once where the processor has a fused multiply-add (always with
+    /// AVX2), else the product and the sum each.
+    fn mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `c - a * b`, rounded as [`Simd::mul_add`] rounds.
+    fn neg_mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// Lane-wise maximum of two non-NaN values.
     fn max(self, a: Self::V, b: Self::V) -> Self::V;
     /// Flips the sign of lanes whose `sign` word has its top bit set.
@@ -130,15 +137,29 @@ pub trait Simd: Copy {
     fn select_positive(self, test: Self::V, then: Self::V, otherwise: Self::V) -> Self::V;
 }
 
-/// Plain loops over arrays; any CPU.
+/// Plain loops over arrays; any CPU. With `FUSED`, [`Simd::mul_add`] rounds once (for a
+/// processor with FMA, whose kernels are compiled with it), else the product and the sum each.
 #[derive(Clone, Copy, Debug)]
-pub struct Portable;
+pub struct Portable<const FUSED: bool>;
 
 fn map2(a: Block, b: Block, f: impl Fn(f32, f32) -> f32) -> Block {
     std::array::from_fn(|lane| f(a[lane], b[lane]))
 }
 
-impl Simd for Portable {
+/// Whether this processor has a fused multiply-add, so that the portable kernels can round
+/// [`Simd::mul_add`] once, as AVX2 does, and stay fast (compiled with FMA; without it,
+/// `f32::mul_add` is a library call per lane and the portable gather 6x slower).
+#[cfg(target_arch = "x86_64")]
+pub fn has_fma() -> bool {
+    std::arch::is_x86_feature_detected!("fma")
+}
+
+/// Whether the portable kernels fuse multiply-adds on this architecture without asking the
+/// processor: every ARM64 has a fused multiply-add.
+#[cfg(not(target_arch = "x86_64"))]
+pub const FUSED_ALWAYS: bool = cfg!(target_arch = "aarch64");
+
+impl<const FUSED: bool> Simd for Portable<FUSED> {
     type V = Block;
     #[inline(always)]
     fn splat(self, value: f32) -> Block {
@@ -229,6 +250,18 @@ impl Simd for Portable {
     #[inline(always)]
     fn sqrt(self, a: Block) -> Block {
         a.map(f32::sqrt)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Block, b: Block, c: Block) -> Block {
+        if FUSED {
+            std::array::from_fn(|lane| a[lane].mul_add(b[lane], c[lane]))
+        } else {
+            std::array::from_fn(|lane| a[lane] * b[lane] + c[lane])
+        }
+    }
+    #[inline(always)]
+    fn neg_mul_add(self, a: Block, b: Block, c: Block) -> Block {
+        self.mul_add(a.map(|a| -a), b, c)
     }
     #[inline(always)]
     fn max(self, a: Block, b: Block) -> Block {
@@ -501,6 +534,14 @@ mod avx2 {
             unsafe { _mm256_sqrt_ps(a) }
         }
         #[inline(always)]
+        fn mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+            unsafe { _mm256_fmadd_ps(a, b, c) }
+        }
+        #[inline(always)]
+        fn neg_mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+            unsafe { _mm256_fnmadd_ps(a, b, c) }
+        }
+        #[inline(always)]
         fn max(self, a: __m256, b: __m256) -> __m256 {
             unsafe { _mm256_max_ps(a, b) }
         }
@@ -539,6 +580,30 @@ mod tests {
         }
     }
 
+    /// Lane 0: `a * a` of `a = 1 + 2^-12` is `1 + 2^-11 + 2^-24`, a rounding tie; adding
+    /// `-(1 + 2^-11)` leaves `2^-24` fused, 0 rounded twice.
+    const ADDENDS: Block = [-1.000_488_3, 0.5, -1.0, 0.0, 3.0, -0.0, 1e-10, -7.0];
+
+    #[test]
+    fn a_multiply_add_rounds_once_only_when_fused() {
+        let a: Block = [1.000_244_1, -2.0, 3.25, 1e-30, 7.0, -0.0, 1e20, 0.1];
+        assert_eq!(
+            a[0] * a[0],
+            1.000_488_3,
+            "the product rounds to the addend's negative"
+        );
+        let fused = Portable::<true>.mul_add(a, a, ADDENDS);
+        let twice = Portable::<false>.mul_add(a, a, ADDENDS);
+        assert_eq!((fused[0], twice[0]), (2f32.powi(-24), 0.0));
+        for lane in 0..LANES {
+            let (a, c) = (a[lane], ADDENDS[lane]);
+            assert_eq!(fused[lane].to_bits(), a.mul_add(a, c).to_bits());
+            assert_eq!(twice[lane].to_bits(), (a * a + c).to_bits());
+        }
+        let negated = Portable::<true>.neg_mul_add(a, a.map(|a| -a), ADDENDS);
+        assert_eq!(negated.map(f32::to_bits), fused.map(f32::to_bits));
+    }
+
     #[cfg(target_arch = "x86_64")]
     fn check_avx2(avx2: Avx2) {
         let a: Block = [1.5, -2.0, 3.25, 1e-30, 7.0, -0.0, 1e20, 0.1];
@@ -548,17 +613,29 @@ mod tests {
             avx2.store(v, &mut out);
             assert_eq!(p.map(f32::to_bits), out.map(f32::to_bits));
         };
-        let (pa, pb) = (Portable.load(&a), Portable.load(&b));
+        let (pa, pb) = (Portable::<true>.load(&a), Portable::<true>.load(&b));
         let (va, vb) = (avx2.load(&a), avx2.load(&b));
-        check(Portable.div(pa, pb), avx2.div(va, vb));
+        check(Portable::<true>.div(pa, pb), avx2.div(va, vb));
         check(
-            Portable.sqrt(Portable.max(pa, pb)),
+            Portable::<true>.sqrt(Portable::<true>.max(pa, pb)),
             avx2.sqrt(avx2.max(va, vb)),
         );
-        let sign = [0, 0x8000_0000, 0, 0x8000_0005, 0, 0, 0x8000_0000, 1];
-        check(Portable.flip_sign(pa, &sign), avx2.flip_sign(va, &sign));
+        let (pc, vc) = (Portable::<true>.load(&ADDENDS), avx2.load(&ADDENDS));
         check(
-            Portable.select_positive(pa, pb, pa),
+            Portable::<true>.mul_add(pa, pb, pc),
+            avx2.mul_add(va, vb, vc),
+        );
+        check(
+            Portable::<true>.neg_mul_add(pa, pb, pc),
+            avx2.neg_mul_add(va, vb, vc),
+        );
+        let sign = [0, 0x8000_0000, 0, 0x8000_0005, 0, 0, 0x8000_0000, 1];
+        check(
+            Portable::<true>.flip_sign(pa, &sign),
+            avx2.flip_sign(va, &sign),
+        );
+        check(
+            Portable::<true>.select_positive(pa, pb, pa),
             avx2.select_positive(va, vb, va),
         );
         let points: Vec<Point> = (0..40)
@@ -568,7 +645,7 @@ mod tests {
         // SAFETY: every masked index is below 40.
         let (portable, vector) = unsafe {
             (
-                Portable.gather_points(points.as_ptr(), &index, !0x8000_0000),
+                Portable::<true>.gather_points(points.as_ptr(), &index, !0x8000_0000),
                 avx2.gather_points(points.as_ptr(), &index, !0x8000_0000),
             )
         };
@@ -584,7 +661,7 @@ mod tests {
             // SAFETY: every masked offset is a point below 40.
             let (portable, vector) = unsafe {
                 (
-                    Portable.gather_points_at(points.as_ptr(), &offsets, mask),
+                    Portable::<true>.gather_points_at(points.as_ptr(), &offsets, mask),
                     avx2.gather_points_at(points.as_ptr(), &offsets, mask),
                 )
             };
@@ -605,23 +682,26 @@ mod tests {
         };
         let portable = {
             // SAFETY: as above.
-            let f = unsafe { Portable.point_pairs_at(points.as_ptr(), &offsets, !0x8000_0000) };
-            let signs = Portable.pair_signs(&offsets);
+            let f =
+                unsafe { Portable::<true>.point_pairs_at(points.as_ptr(), &offsets, !0x8000_0000) };
+            let signs = Portable::<true>.pair_signs(&offsets);
             let zero = [0.0; LANES];
             let once: [Block; 4] =
-                std::array::from_fn(|k| Portable.add_signed(zero, f[k], signs[k]));
+                std::array::from_fn(|k| Portable::<true>.add_signed(zero, f[k], signs[k]));
             let twice: [Block; 4] =
-                std::array::from_fn(|k| Portable.add_signed(once[k], f[k], signs[k]));
-            Portable.transpose_point_pairs(twice)
+                std::array::from_fn(|k| Portable::<true>.add_signed(once[k], f[k], signs[k]));
+            Portable::<true>.transpose_point_pairs(twice)
         };
         for (p, v) in portable.iter().zip(signed_sum(avx2)) {
             check(*p, v);
         }
         // SAFETY: as above.
-        let axes = unsafe { Portable.gather_points_at(points.as_ptr(), &offsets, !0x8000_0000) };
+        let axes =
+            unsafe { Portable::<true>.gather_points_at(points.as_ptr(), &offsets, !0x8000_0000) };
         for (p, axis) in portable.iter().zip(axes) {
-            let flipped = Portable.flip_sign(axis, &offsets);
-            let by_flips = Portable.add(Portable.add([0.0; LANES], flipped), flipped);
+            let flipped = Portable::<true>.flip_sign(axis, &offsets);
+            let by_flips =
+                Portable::<true>.add(Portable::<true>.add([0.0; LANES], flipped), flipped);
             assert_eq!(p.map(f32::to_bits), by_flips.map(f32::to_bits));
         }
         // Rounding sums: fused or not, `sum + value * (+-1)` rounds once, as `sum +- value`.
@@ -631,14 +711,14 @@ mod tests {
         );
         let sign: Block = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0];
         check(
-            Portable.add_signed(sum, value, sign),
+            Portable::<true>.add_signed(sum, value, sign),
             avx2.add_signed(avx2.load(&sum), avx2.load(&value), avx2.load(&sign)),
         );
         let plain = offsets.map(|o| o & !0x8000_0000);
         // SAFETY: every offset is a point below 40.
         let (portable, vector) = unsafe {
             (
-                Portable.gather_points_at(points.as_ptr(), &plain, u32::MAX),
+                Portable::<true>.gather_points_at(points.as_ptr(), &plain, u32::MAX),
                 avx2.gather_points_at(points.as_ptr(), &plain, u32::MAX),
             )
         };
@@ -646,7 +726,7 @@ mod tests {
             check(p, v);
         }
         let (mut from_portable, mut from_vector) = ([[0.0; 4]; LANES], [[1.0; 4]; LANES]);
-        Portable.store_points(portable, &mut from_portable);
+        Portable::<true>.store_points(portable, &mut from_portable);
         avx2.store_points(vector, &mut from_vector);
         assert_eq!(from_portable, from_vector);
         // Point `k` is read from and stored at its slot, with a zero fourth word: stored
@@ -657,7 +737,7 @@ mod tests {
             assert_eq!(point, [source[0], source[1], source[2], 0.0]);
         }
         // And load back as they were gathered.
-        let loaded = Portable.load_points(&from_portable);
+        let loaded = Portable::<true>.load_points(&from_portable);
         for ((p, v), l) in portable
             .iter()
             .zip(avx2.load_points(&from_vector))
@@ -675,7 +755,7 @@ mod tests {
         // SAFETY: every masked index is below 40.
         unsafe {
             check(
-                Portable.gather(values.as_ptr(), &index, !0x8000_0000),
+                Portable::<true>.gather(values.as_ptr(), &index, !0x8000_0000),
                 avx2.gather(values.as_ptr(), &index, !0x8000_0000),
             )
         };

@@ -6,7 +6,9 @@
 //! The GPU hashes hold for the adapter named in the file's header (Mesa's lavapipe on Vulkan,
 //! which `./run test` installs and CI uses); another adapter, llvmpipe over GL included, rounds
 //! differently, so there the GPU rows are listed as not compared and the CPU and reference rows
-//! still are. `HOOKE_BLESS=1` records the current hashes.
+//! still are. The CPU hashes hold on processors with FMA (every x86-64 with AVX2): one without
+//! rounds the spring formula's multiply-adds twice (see `hooke_cpu::simd`). `HOOKE_BLESS=1`
+//! records the current hashes.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
