@@ -762,9 +762,10 @@ fn integrate_slice<S: Simd>(
         let (next, delta) = (&mut *next[axis], &mut *delta[axis]);
         let x = own[axis];
         let moved = simd.add(
-            simd.add(
+            simd.mul_add(
+                force[axis],
+                force_scale,
                 simd.mul(simd.load(delta), velocity_scale),
-                simd.mul(force[axis], force_scale),
             ),
             simd.splat(integrator.gravity_step[axis]),
         );

@@ -114,7 +114,7 @@ pub trait Simd: Copy {
     /// with AVX2).
     fn add_signed(self, sum: Self::V, value: Self::V, sign: Self::V) -> Self::V;
     /// Stores lane `k` of `x`, `y` and `z` as point `k` of `out` (at its [`point_slot`]), its
-    /// fourth word zero.
+    /// fourth word a copy of z (which nothing reads).
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
     /// Lane `k` of x, y and z from point `k` of `points` (at its [`point_slot`]): what
     /// [`Simd::store_points`] stored.
@@ -222,7 +222,7 @@ impl<const FUSED: bool> Simd for Portable<FUSED> {
     #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
         for lane in 0..LANES {
-            out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], 0.0];
+            out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], z[lane]];
         }
     }
     #[inline(always)]
@@ -484,15 +484,13 @@ mod avx2 {
             unsafe {
                 // The transpose of `gather_points`: points (k, k + 4) in each register, which
                 // `point_slot` stores side by side: one 32-byte store each.
-                let zero = _mm256_setzero_ps();
+                // z goes in twice, as z and w: two shuffles fewer than pairing it with zeros.
                 let xy01 = _mm256_unpacklo_ps(x, y);
                 let xy23 = _mm256_unpackhi_ps(x, y);
-                let zw01 = _mm256_unpacklo_ps(z, zero);
-                let zw23 = _mm256_unpackhi_ps(z, zero);
-                let p04 = _mm256_shuffle_ps::<0x44>(xy01, zw01);
-                let p15 = _mm256_shuffle_ps::<0xEE>(xy01, zw01);
-                let p26 = _mm256_shuffle_ps::<0x44>(xy23, zw23);
-                let p37 = _mm256_shuffle_ps::<0xEE>(xy23, zw23);
+                let p04 = _mm256_shuffle_ps::<0x04>(xy01, z);
+                let p15 = _mm256_shuffle_ps::<0x5E>(xy01, z);
+                let p26 = _mm256_shuffle_ps::<0xA4>(xy23, z);
+                let p37 = _mm256_shuffle_ps::<0xFE>(xy23, z);
                 let base = out.as_mut_ptr().cast::<f32>();
                 _mm256_storeu_ps(base, p04);
                 _mm256_storeu_ps(base.add(8), p15);
@@ -729,12 +727,12 @@ mod tests {
         Portable::<true>.store_points(portable, &mut from_portable);
         avx2.store_points(vector, &mut from_vector);
         assert_eq!(from_portable, from_vector);
-        // Point `k` is read from and stored at its slot, with a zero fourth word: stored
+        // Point `k` is read from and stored at its slot, z again as its fourth word: stored
         // points hold what was gathered.
         for lane in 0..LANES {
             let source = points[point_slot(index[lane] & !0x8000_0000) as usize];
             let point = from_portable[point_slot(lane as u32) as usize];
-            assert_eq!(point, [source[0], source[1], source[2], 0.0]);
+            assert_eq!(point, [source[0], source[1], source[2], source[2]]);
         }
         // And load back as they were gathered.
         let loaded = Portable::<true>.load_points(&from_portable);
