@@ -129,8 +129,6 @@ pub trait Simd: Copy {
     fn mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// `c - a * b`, rounded as [`Simd::mul_add`] rounds.
     fn neg_mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
-    /// Lane-wise maximum of two non-NaN values.
-    fn max(self, a: Self::V, b: Self::V) -> Self::V;
     /// Flips the sign of lanes whose `sign` word has its top bit set.
     fn flip_sign(self, a: Self::V, sign: &[u32; LANES]) -> Self::V;
     /// `if test > 0 { then } else { otherwise }` per lane.
@@ -262,10 +260,6 @@ impl<const FUSED: bool> Simd for Portable<FUSED> {
     #[inline(always)]
     fn neg_mul_add(self, a: Block, b: Block, c: Block) -> Block {
         self.mul_add(a.map(|a| -a), b, c)
-    }
-    #[inline(always)]
-    fn max(self, a: Block, b: Block) -> Block {
-        map2(a, b, |x, y| if x > y { x } else { y })
     }
     #[inline(always)]
     fn flip_sign(self, a: Block, sign: &[u32; LANES]) -> Block {
@@ -540,10 +534,6 @@ mod avx2 {
             unsafe { _mm256_fnmadd_ps(a, b, c) }
         }
         #[inline(always)]
-        fn max(self, a: __m256, b: __m256) -> __m256 {
-            unsafe { _mm256_max_ps(a, b) }
-        }
-        #[inline(always)]
         fn flip_sign(self, a: __m256, sign: &[u32; LANES]) -> __m256 {
             unsafe {
                 let bits = _mm256_and_si256(
@@ -615,8 +605,8 @@ mod tests {
         let (va, vb) = (avx2.load(&a), avx2.load(&b));
         check(Portable::<true>.div(pa, pb), avx2.div(va, vb));
         check(
-            Portable::<true>.sqrt(Portable::<true>.max(pa, pb)),
-            avx2.sqrt(avx2.max(va, vb)),
+            Portable::<true>.sqrt(Portable::<true>.mul(pa, pa)),
+            avx2.sqrt(avx2.mul(va, va)),
         );
         let (pc, vc) = (Portable::<true>.load(&ADDENDS), avx2.load(&ADDENDS));
         check(
