@@ -594,6 +594,8 @@ mod tests {
 
     #[cfg(target_arch = "x86_64")]
     fn check_avx2(avx2: Avx2) {
+        // The portable loops as the kernels run them on this processor, which has FMA.
+        let loops = Portable::<true>;
         let a: Block = [1.5, -2.0, 3.25, 1e-30, 7.0, -0.0, 1e20, 0.1];
         let b: Block = [0.3, 0.7, -1.1, 2.0, 1e-20, 5.0, 3.0, 0.2];
         let check = |p: Block, v: std::arch::x86_64::__m256| {
@@ -601,29 +603,17 @@ mod tests {
             avx2.store(v, &mut out);
             assert_eq!(p.map(f32::to_bits), out.map(f32::to_bits));
         };
-        let (pa, pb) = (Portable::<true>.load(&a), Portable::<true>.load(&b));
+        let (pa, pb) = (loops.load(&a), loops.load(&b));
         let (va, vb) = (avx2.load(&a), avx2.load(&b));
-        check(Portable::<true>.div(pa, pb), avx2.div(va, vb));
-        check(
-            Portable::<true>.sqrt(Portable::<true>.mul(pa, pa)),
-            avx2.sqrt(avx2.mul(va, va)),
-        );
-        let (pc, vc) = (Portable::<true>.load(&ADDENDS), avx2.load(&ADDENDS));
-        check(
-            Portable::<true>.mul_add(pa, pb, pc),
-            avx2.mul_add(va, vb, vc),
-        );
-        check(
-            Portable::<true>.neg_mul_add(pa, pb, pc),
-            avx2.neg_mul_add(va, vb, vc),
-        );
+        check(loops.div(pa, pb), avx2.div(va, vb));
+        check(loops.sqrt(loops.mul(pa, pa)), avx2.sqrt(avx2.mul(va, va)));
+        let (pc, vc) = (loops.load(&ADDENDS), avx2.load(&ADDENDS));
+        check(loops.mul_add(pa, pb, pc), avx2.mul_add(va, vb, vc));
+        check(loops.neg_mul_add(pa, pb, pc), avx2.neg_mul_add(va, vb, vc));
         let sign = [0, 0x8000_0000, 0, 0x8000_0005, 0, 0, 0x8000_0000, 1];
+        check(loops.flip_sign(pa, &sign), avx2.flip_sign(va, &sign));
         check(
-            Portable::<true>.flip_sign(pa, &sign),
-            avx2.flip_sign(va, &sign),
-        );
-        check(
-            Portable::<true>.select_positive(pa, pb, pa),
+            loops.select_positive(pa, pb, pa),
             avx2.select_positive(va, vb, va),
         );
         let points: Vec<Point> = (0..40)
@@ -633,7 +623,7 @@ mod tests {
         // SAFETY: every masked index is below 40.
         let (portable, vector) = unsafe {
             (
-                Portable::<true>.gather_points(points.as_ptr(), &index, !0x8000_0000),
+                loops.gather_points(points.as_ptr(), &index, !0x8000_0000),
                 avx2.gather_points(points.as_ptr(), &index, !0x8000_0000),
             )
         };
@@ -649,7 +639,7 @@ mod tests {
             // SAFETY: every masked offset is a point below 40.
             let (portable, vector) = unsafe {
                 (
-                    Portable::<true>.gather_points_at(points.as_ptr(), &offsets, mask),
+                    loops.gather_points_at(points.as_ptr(), &offsets, mask),
                     avx2.gather_points_at(points.as_ptr(), &offsets, mask),
                 )
             };
@@ -670,26 +660,22 @@ mod tests {
         };
         let portable = {
             // SAFETY: as above.
-            let f =
-                unsafe { Portable::<true>.point_pairs_at(points.as_ptr(), &offsets, !0x8000_0000) };
-            let signs = Portable::<true>.pair_signs(&offsets);
+            let f = unsafe { loops.point_pairs_at(points.as_ptr(), &offsets, !0x8000_0000) };
+            let signs = loops.pair_signs(&offsets);
             let zero = [0.0; LANES];
-            let once: [Block; 4] =
-                std::array::from_fn(|k| Portable::<true>.add_signed(zero, f[k], signs[k]));
+            let once: [Block; 4] = std::array::from_fn(|k| loops.add_signed(zero, f[k], signs[k]));
             let twice: [Block; 4] =
-                std::array::from_fn(|k| Portable::<true>.add_signed(once[k], f[k], signs[k]));
-            Portable::<true>.transpose_point_pairs(twice)
+                std::array::from_fn(|k| loops.add_signed(once[k], f[k], signs[k]));
+            loops.transpose_point_pairs(twice)
         };
         for (p, v) in portable.iter().zip(signed_sum(avx2)) {
             check(*p, v);
         }
         // SAFETY: as above.
-        let axes =
-            unsafe { Portable::<true>.gather_points_at(points.as_ptr(), &offsets, !0x8000_0000) };
+        let axes = unsafe { loops.gather_points_at(points.as_ptr(), &offsets, !0x8000_0000) };
         for (p, axis) in portable.iter().zip(axes) {
-            let flipped = Portable::<true>.flip_sign(axis, &offsets);
-            let by_flips =
-                Portable::<true>.add(Portable::<true>.add([0.0; LANES], flipped), flipped);
+            let flipped = loops.flip_sign(axis, &offsets);
+            let by_flips = loops.add(loops.add([0.0; LANES], flipped), flipped);
             assert_eq!(p.map(f32::to_bits), by_flips.map(f32::to_bits));
         }
         // Rounding sums: fused or not, `sum + value * (+-1)` rounds once, as `sum +- value`.
@@ -699,14 +685,14 @@ mod tests {
         );
         let sign: Block = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0, 1.0, -1.0];
         check(
-            Portable::<true>.add_signed(sum, value, sign),
+            loops.add_signed(sum, value, sign),
             avx2.add_signed(avx2.load(&sum), avx2.load(&value), avx2.load(&sign)),
         );
         let plain = offsets.map(|o| o & !0x8000_0000);
         // SAFETY: every offset is a point below 40.
         let (portable, vector) = unsafe {
             (
-                Portable::<true>.gather_points_at(points.as_ptr(), &plain, u32::MAX),
+                loops.gather_points_at(points.as_ptr(), &plain, u32::MAX),
                 avx2.gather_points_at(points.as_ptr(), &plain, u32::MAX),
             )
         };
@@ -714,7 +700,7 @@ mod tests {
             check(p, v);
         }
         let (mut from_portable, mut from_vector) = ([[0.0; 4]; LANES], [[1.0; 4]; LANES]);
-        Portable::<true>.store_points(portable, &mut from_portable);
+        loops.store_points(portable, &mut from_portable);
         avx2.store_points(vector, &mut from_vector);
         assert_eq!(from_portable, from_vector);
         // Point `k` is read from and stored at its slot, z again as its fourth word: stored
@@ -725,7 +711,7 @@ mod tests {
             assert_eq!(point, [source[0], source[1], source[2], source[2]]);
         }
         // And load back as they were gathered.
-        let loaded = Portable::<true>.load_points(&from_portable);
+        let loaded = loops.load_points(&from_portable);
         for ((p, v), l) in portable
             .iter()
             .zip(avx2.load_points(&from_vector))
@@ -743,7 +729,7 @@ mod tests {
         // SAFETY: every masked index is below 40.
         unsafe {
             check(
-                Portable::<true>.gather(values.as_ptr(), &index, !0x8000_0000),
+                loops.gather(values.as_ptr(), &index, !0x8000_0000),
                 avx2.gather(values.as_ptr(), &index, !0x8000_0000),
             )
         };
