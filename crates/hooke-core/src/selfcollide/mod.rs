@@ -253,12 +253,19 @@ fn same_key_run<'a, I: Iterator<Item = usize> + 'a>(
         .take(w)
 }
 
-/// Sorted slots per parallel task of the window test: two tasks per thread, of 1024 to 4096
+/// Sorted slots per parallel task of the window test: two tasks per thread, of 256 to 4096
 /// slots. A local pass's ~10,000 slots at 512^2 made 3 tasks of 4096: its window tests took
 /// 0.46-0.53 ms a step on 16 threads against 0.25-0.27 in tasks of 1024, and 0.36-0.46 on 2
-/// threads against 0.30-0.31 in four tasks.
+/// threads against 0.30-0.31 in four tasks. Since a local pass sorts only the vertices that
+/// share a key with a suspect (see `keyed`), it holds 1,000-3,000 slots at 512^2 in
+/// contact, which tasks of at least 1024 left on one thread, or cut into three of which one
+/// thread tested two while the other waited. On alternate steps of the same runs of the
+/// 512^2 workload, in four tasks against that: at 3,000 slots 151-155 us a step against
+/// 231-235, at 1,000 55-60 against 75-77, at 2,300 116-125 against 121-129 (two runs each;
+/// a third, in a slow spell of the VM, read the other way). Eight tasks (four a thread) took
+/// 170 us against 160 for four, and two 254 against 229.
 fn window_task(slots: usize) -> usize {
-    (slots / (2 * rayon::current_num_threads().max(1))).clamp(1024, 4096)
+    (slots / (2 * rayon::current_num_threads().max(1))).clamp(256, 4096)
 }
 
 /// Crowded slots ahead of the one being tested whose position the window test asks for: a
