@@ -263,7 +263,7 @@ fn same_key_run<'a, I: Iterator<Item = usize> + 'a>(
 /// 512^2 workload, in four tasks against that: at 3,000 slots 151-155 us a step against
 /// 231-235, at 1,000 55-60 against 75-77, at 2,300 116-125 against 121-129 (two runs each;
 /// a third, in a slow spell of the VM, read the other way). Eight tasks (four a thread) took
-/// 170 us against 160 for four, and two 254 against 229.
+/// 170 us against 160 for four; two (one a thread) 254 against 229 for three of 1024.
 fn window_task(slots: usize) -> usize {
     (slots / (2 * rayon::current_num_threads().max(1))).clamp(256, 4096)
 }
