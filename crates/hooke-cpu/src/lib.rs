@@ -673,6 +673,8 @@ impl CpuSolver {
         }
         if !self.points_fresh {
             let [xs, ys, zs] = self.current.axes();
+            // Storing and loading points multiplies nothing: either portable kind gives the
+            // same bits.
             self.points
                 .par_iter_mut()
                 .zip(xs.par_iter().zip(ys.par_iter()).zip(zs.par_iter()))
