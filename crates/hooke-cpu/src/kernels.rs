@@ -339,6 +339,10 @@ pub struct SpringTable {
     pub stiffness: Stiffness,
     /// Slots before the last row's padding.
     pub slots: usize,
+    /// Whether the force pass stores each spring's stretch `(d, k)` as a point instead of its
+    /// force `k d` ([`Simd::store_stretches`]): where gather sums fused (see
+    /// `tables::sums_fused`). Only with forces as points.
+    pub stretches: bool,
 }
 
 /// Scatter's per-spring forces, as its force pass writes them and its accumulation reads them.
@@ -354,9 +358,9 @@ pub enum SpringForces {
 }
 
 impl SpringForces {
-    /// Points when most incidence rows load lane by lane.
+    /// Points when most incidence rows load lane by lane, or the slots hold stretches.
     pub fn for_incidence(incidence: &IncidenceTable, spring_rows: usize) -> Self {
-        if incidence.entry.mostly_gathered() {
+        if incidence.entry.mostly_gathered() || incidence.stretches {
             Self::Points(vec![[[0.0; 4]; LANES]; spring_rows + 1])
         } else {
             Self::Axes(Soa::zeros(spring_rows + 1))
@@ -409,6 +413,9 @@ pub struct IncidenceTable {
     /// lane's spring in its own lane and owned by it (no [`B_END`]): the summing from points
     /// loads such a row with 4 vector loads instead of 8 point loads, inserts and signs.
     pub tails: Vec<u8>,
+    /// Whether the spring slots hold stretches, each force `k d` then added as gather adds
+    /// it; see [`SpringTable::stretches`].
+    pub stretches: bool,
 }
 
 /// Per-vertex integration constants (see the module docs).
@@ -554,6 +561,20 @@ fn spring_force_rows<S: Simd>(
     stiffness: S::V,
     rest: S::V,
 ) -> [S::V; 3] {
+    let (k, [dx, dy, dz]) = spring_stretch_rows(simd, near, far, stiffness, rest);
+    [simd.mul(k, dx), simd.mul(k, dy), simd.mul(k, dz)]
+}
+
+/// The stretch of 8 springs seen from their near ends: `k = D - D l0/|d|` and `d = x_far -
+/// x_near`, whose product is the force ([`spring_force_rows`]).
+#[inline(always)]
+fn spring_stretch_rows<S: Simd>(
+    simd: S,
+    near: [S::V; 3],
+    far: [S::V; 3],
+    stiffness: S::V,
+    rest: S::V,
+) -> (S::V, [S::V; 3]) {
     // Written out per axis: closures (`[T; 3]::map`) would not inline into the AVX2 functions.
     let (dx, dy, dz) = (
         simd.sub(far[0], near[0]),
@@ -571,7 +592,18 @@ fn spring_force_rows<S: Simd>(
     let length_squared = simd.mul_add(dz, dz, simd.mul_add(dy, dy, simd.mul_add(dx, dx, tiny)));
     let length = simd.sqrt(length_squared);
     let k = simd.neg_mul_add(stiffness, simd.div(rest, length), stiffness);
-    [simd.mul(k, dx), simd.mul(k, dy), simd.mul(k, dz)]
+    (k, [dx, dy, dz])
+}
+
+/// `force + k d`, each axis rounded once: an irregular mesh's spring forces summed (see
+/// `gather_slice`).
+#[inline(always)]
+fn add_stretch<S: Simd>(simd: S, force: [S::V; 3], (k, d): (S::V, [S::V; 3])) -> [S::V; 3] {
+    [
+        simd.mul_add(k, d[0], force[0]),
+        simd.mul_add(k, d[1], force[1]),
+        simd.mul_add(k, d[2], force[2]),
+    ]
 }
 
 /// The spring forces on slice `slice`, whose positions are `own`.
@@ -589,6 +621,13 @@ fn gather_slice<S: Simd, const POINTS: bool>(
         && let (Some(points), Some(offsets)) = (positions.points, table.neighbor.point_offsets())
     {
         // An irregular mesh's rows, read in order: zipped, without bounds checks per row.
+        // Each force is added with fused multiply-adds, `k d` never rounded on its own: three
+        // operations a row fewer, where the rows' transposes keep the floating-point ports
+        // busy (the step 6-9% faster; see the performance log, 2026-12-06). Scatter sums
+        // alike by storing stretches instead of forces (`tables::sums_fused`), which costs
+        // it a shuffle and a product per point pair; on a grid, whose forces scatter keeps
+        // as three axes (a fourth would cost memory), both methods add `k d` rounded, where
+        // fusing saved the grid's gather only 2% when tried.
         let offsets = &offsets[rows.clone()];
         if let (Some(rest), Some(stiffness)) = (
             table.rest_length.whole_rows(),
@@ -598,8 +637,8 @@ fn gather_slice<S: Simd, const POINTS: bool>(
             for (offsets, rest) in offsets.iter().zip(&rest[rows]) {
                 // SAFETY: as in `load_positions_row`.
                 let neighbor = unsafe { points.gather_points_at(simd, offsets, u32::MAX) };
-                let f = spring_force_rows(simd, own, neighbor, stiffness, simd.load(rest));
-                force = add3(simd, force, f);
+                let stretch = spring_stretch_rows(simd, own, neighbor, stiffness, simd.load(rest));
+                force = add_stretch(simd, force, stretch);
             }
         } else {
             for (row, offsets) in rows.zip(offsets) {
@@ -607,8 +646,8 @@ fn gather_slice<S: Simd, const POINTS: bool>(
                 let neighbor = unsafe { points.gather_points_at(simd, offsets, u32::MAX) };
                 let stiffness = simd.load(table.stiffness.row(row));
                 let rest = table.rest_length.load(simd, row);
-                let f = spring_force_rows(simd, own, neighbor, stiffness, rest);
-                force = add3(simd, force, f);
+                let stretch = spring_stretch_rows(simd, own, neighbor, stiffness, rest);
+                force = add_stretch(simd, force, stretch);
             }
         }
         return force;
@@ -657,11 +696,64 @@ fn accumulate_slice<S: Simd>(
     force
 }
 
-/// [`accumulate_slice`] from one point per spring slot: each row's 8 points added as
-/// loaded, two to a value, their signs applied by the same (exact) operation, and the sums
-/// transposed once per slice instead of once per row. The same additions in the same order.
+/// How a spring slot's point adds into a pair of sums: forces as they are, or stretches.
+/// Named types with inlined methods, as for [`SliceForces`].
+trait SlotPoints {
+    /// `sum + sign * point` for a pair of points, `sign` +1 or -1 per word.
+    fn signed<S: Simd>(simd: S, sum: S::V, pair: S::V, sign: S::V) -> S::V;
+    /// `sum + point` for a pair of points the lanes own (a sign of +1).
+    fn owned<S: Simd>(simd: S, sum: S::V, pair: S::V) -> S::V;
+}
+
+/// Spring forces: signs applied by an exact fused multiply-add.
+struct ForcePoints;
+
+impl SlotPoints for ForcePoints {
+    #[inline(always)]
+    fn signed<S: Simd>(simd: S, sum: S::V, pair: S::V, sign: S::V) -> S::V {
+        simd.add_signed(sum, pair, sign)
+    }
+    #[inline(always)]
+    fn owned<S: Simd>(simd: S, sum: S::V, pair: S::V) -> S::V {
+        simd.add(sum, pair)
+    }
+}
+
+/// Stretches `(d, k)`: each force `k d` added as gather adds it, `sum + k d` rounded once (a
+/// far end's `k` negated first, exactly). The fourth words sum `k^2` terms that nothing reads.
+struct StretchPoints;
+
+impl SlotPoints for StretchPoints {
+    #[inline(always)]
+    fn signed<S: Simd>(simd: S, sum: S::V, pair: S::V, sign: S::V) -> S::V {
+        simd.mul_add(simd.mul(simd.fourths(pair), sign), pair, sum)
+    }
+    #[inline(always)]
+    fn owned<S: Simd>(simd: S, sum: S::V, pair: S::V) -> S::V {
+        simd.mul_add(simd.fourths(pair), pair, sum)
+    }
+}
+
+/// [`accumulate_slice`] from one point per spring slot, forces or stretches as the table
+/// says: each row's 8 points added as loaded, two to a value, their signs applied exactly,
+/// and the sums transposed once per slice instead of once per row. The same additions in the
+/// same order.
 #[inline(always)]
 fn accumulate_points_slice<S: Simd>(
+    simd: S,
+    table: &IncidenceTable,
+    points: Points<'_>,
+    slice: usize,
+) -> [S::V; 3] {
+    if table.stretches {
+        sum_slot_points::<S, StretchPoints>(simd, table, points, slice)
+    } else {
+        sum_slot_points::<S, ForcePoints>(simd, table, points, slice)
+    }
+}
+
+#[inline(always)]
+fn sum_slot_points<S: Simd, P: SlotPoints>(
     simd: S,
     table: &IncidenceTable,
     points: Points<'_>,
@@ -670,10 +762,10 @@ fn accumulate_points_slice<S: Simd>(
     let mut sum = [simd.splat(0.0); 4];
     let add = |sum: [S::V; 4], f: [S::V; 4], sign: [S::V; 4]| {
         [
-            simd.add_signed(sum[0], f[0], sign[0]),
-            simd.add_signed(sum[1], f[1], sign[1]),
-            simd.add_signed(sum[2], f[2], sign[2]),
-            simd.add_signed(sum[3], f[3], sign[3]),
+            P::signed(simd, sum[0], f[0], sign[0]),
+            P::signed(simd, sum[1], f[1], sign[1]),
+            P::signed(simd, sum[2], f[2], sign[2]),
+            P::signed(simd, sum[3], f[3], sign[3]),
         ]
     };
     let rows = table.slices.rows(slice);
@@ -690,12 +782,11 @@ fn accumulate_points_slice<S: Simd>(
             // SAFETY: a tail's row is a whole row of spring slots in order, owned by its lanes
             // (`IncidenceTable::tails`), so its first offset starts 8 points in bounds.
             let f = unsafe { points.point_pairs_run(simd, offsets[0]) };
-            // Adding a force owned by the lane is what `add_signed` does with a sign of +1.
             sum = [
-                simd.add(sum[0], f[0]),
-                simd.add(sum[1], f[1]),
-                simd.add(sum[2], f[2]),
-                simd.add(sum[3], f[3]),
+                P::owned(simd, sum[0], f[0]),
+                P::owned(simd, sum[1], f[1]),
+                P::owned(simd, sum[2], f[2]),
+                P::owned(simd, sum[3], f[3]),
             ];
         }
         return simd.transpose_point_pairs(sum);
@@ -1083,10 +1174,27 @@ fn spring_row_force<S: Simd, const POINTS: bool>(
     positions: Positions<'_>,
     row: usize,
 ) -> [S::V; 3] {
-    let a = load_positions_row::<S, POINTS>(simd, positions, &springs.a, row);
-    let b = load_positions_row::<S, POINTS>(simd, positions, &springs.b, row);
-    let stiffness = simd.load(springs.stiffness.row(row));
-    spring_force_rows(simd, a, b, stiffness, springs.rest_length.load(simd, row))
+    let (a, b, stiffness, rest) = spring_row_inputs::<S, POINTS>(simd, springs, positions, row);
+    spring_force_rows(simd, a, b, stiffness, rest)
+}
+
+/// A spring row's `a` ends, `b` ends, stiffness and rest length.
+type RowInputs<V> = ([V; 3], [V; 3], V, V);
+
+/// Row `row`'s ends, stiffness and rest length.
+#[inline(always)]
+fn spring_row_inputs<S: Simd, const POINTS: bool>(
+    simd: S,
+    springs: &SpringTable,
+    positions: Positions<'_>,
+    row: usize,
+) -> RowInputs<S::V> {
+    (
+        load_positions_row::<S, POINTS>(simd, positions, &springs.a, row),
+        load_positions_row::<S, POINTS>(simd, positions, &springs.b, row),
+        simd.load(springs.stiffness.row(row)),
+        springs.rest_length.load(simd, row),
+    )
 }
 
 /// Both ends of an irregular mesh's spring row: a run of first ends (a slice's vertices,
@@ -1146,6 +1254,7 @@ fn spring_rows<S: Simd, const POINTS: bool>(
     // Calls, not a closure: closures would not inline into the AVX2 functions.
     match out {
         ForceRows::Axes([ox, oy, oz]) => {
+            debug_assert!(!springs.stretches, "stretches are stored as points");
             for (k, ((fx, fy), fz)) in ox
                 .iter_mut()
                 .zip(oy.iter_mut())
@@ -1183,8 +1292,8 @@ fn spring_rows<S: Simd, const POINTS: bool>(
                         // and the points.
                         let (a, b) =
                             unsafe { irregular_row_ends(simd, positions.axes, points, ends) };
-                        let f = spring_force_rows(simd, a, b, stiffness, simd.load(rest));
-                        simd.store_points(f, out);
+                        let rest = simd.load(rest);
+                        store_spring_row(simd, springs.stretches, a, b, stiffness, rest, out);
                     }
                     return;
                 }
@@ -1193,15 +1302,35 @@ fn spring_rows<S: Simd, const POINTS: bool>(
                     let (a, b) = unsafe { irregular_row_ends(simd, positions.axes, points, ends) };
                     let stiffness = simd.load(springs.stiffness.row(row));
                     let rest = springs.rest_length.load(simd, row);
-                    simd.store_points(spring_force_rows(simd, a, b, stiffness, rest), out);
+                    store_spring_row(simd, springs.stretches, a, b, stiffness, rest, out);
                 }
                 return;
             }
             for (k, out) in rows.iter_mut().enumerate() {
-                let force = spring_row_force::<S, POINTS>(simd, springs, positions, first_row + k);
-                simd.store_points(force, out);
+                let (a, b, stiffness, rest) =
+                    spring_row_inputs::<S, POINTS>(simd, springs, positions, first_row + k);
+                store_spring_row(simd, springs.stretches, a, b, stiffness, rest, out);
             }
         }
+    }
+}
+
+/// Stores a row of springs as points: their stretches, or their forces.
+#[inline(always)]
+fn store_spring_row<S: Simd>(
+    simd: S,
+    stretches: bool,
+    a: [S::V; 3],
+    b: [S::V; 3],
+    stiffness: S::V,
+    rest: S::V,
+    out: &mut [Point; LANES],
+) {
+    if stretches {
+        let (k, d) = spring_stretch_rows(simd, a, b, stiffness, rest);
+        simd.store_stretches(d, k, out);
+    } else {
+        simd.store_points(spring_force_rows(simd, a, b, stiffness, rest), out);
     }
 }
 
@@ -1353,26 +1482,55 @@ mod tests {
             }
             slice_rows.push(rows.len() as u32);
         }
+        // Forces, or stretches whose fourth word is `k`.
         let forces: Vec<[Point; LANES]> = (0..40)
             .map(|r| {
                 std::array::from_fn(|k| {
                     let v = (r * LANES + k) as f32;
-                    [0.1 * v + 1e-3, -1.7 * v, 3.0e5 / (v + 1.0), 0.0]
+                    [0.1 * v + 1e-3, -1.7 * v, 3.0e5 / (v + 1.0), 0.3 - 1e-3 * v]
                 })
             })
             .collect();
         let view = ForcesView::Points(Points::new(forces.as_flattened()));
+        for stretches in [false, true] {
+            check_sums(
+                &rows,
+                &slice_rows,
+                &widths,
+                &tails,
+                &forces,
+                view,
+                slots,
+                stretches,
+            );
+        }
+    }
+
+    /// Sums `forces` (or stretches) by incidence rows `rows` stored every way, against a plain
+    /// loop.
+    #[allow(clippy::too_many_arguments)] // one table's parts
+    fn check_sums(
+        rows: &[[u32; LANES]],
+        slice_rows: &[u32],
+        widths: &[usize],
+        tails: &Vec<u8>,
+        forces: &[[Point; LANES]],
+        view: ForcesView<'_>,
+        slots: u32,
+        stretches: bool,
+    ) {
         let table = |form, tails: &Vec<u8>| IncidenceTable {
             slices: Slices {
-                slice_rows: slice_rows.clone(),
+                slice_rows: slice_rows.to_vec(),
             },
-            entry: IndexRows::new(rows.clone(), !B_END, slots as usize, form),
+            entry: IndexRows::new(rows.to_vec(), !B_END, slots as usize, form),
             tails: tails.clone(),
+            stretches,
         };
         let no_tails = vec![0; widths.len()];
         let (offsets, whole, entries) = (
             table(RowForm::Points, &no_tails),
-            table(RowForm::Points, &tails),
+            table(RowForm::Points, tails),
             table(RowForm::Runs, &no_tails),
         );
         assert!(offsets.entry.point_offsets().is_some() && entries.entry.point_offsets().is_none());
@@ -1387,6 +1545,11 @@ mod tests {
             accumulate_forces(isa, table, view, chunk);
             out
         };
+        // Whether the portable kernels round a multiply-add once here (as `dispatch!` picks).
+        #[cfg(target_arch = "x86_64")]
+        let fused = crate::simd::has_fma();
+        #[cfg(not(target_arch = "x86_64"))]
+        let fused = crate::simd::FUSED_ALWAYS;
         let expected = sums(&offsets, InstructionSet::Portable);
         for isa in [InstructionSet::Best, InstructionSet::Portable] {
             for table in [&offsets, &whole, &entries] {
@@ -1403,9 +1566,14 @@ mod tests {
                     let e = rows[row][lane];
                     let slot = (e & !B_END) as usize;
                     let f = forces[slot / LANES][point_slot((slot % LANES) as u32) as usize];
+                    let sign = if e & B_END != 0 { -1.0 } else { 1.0 };
                     for axis in 0..3 {
-                        let v = if e & B_END != 0 { -f[axis] } else { f[axis] };
-                        sum[axis] += v;
+                        sum[axis] = match stretches {
+                            // As gather adds a force: `k d` rounded once with the sum.
+                            true if fused => (f[3] * sign).mul_add(f[axis], sum[axis]),
+                            true => sum[axis] + f[3] * sign * f[axis],
+                            false => sum[axis] + sign * f[axis],
+                        };
                     }
                 }
                 for axis in 0..3 {
@@ -1413,7 +1581,7 @@ mod tests {
                     assert_eq!(
                         got.to_bits(),
                         sum[axis].to_bits(),
-                        "slice {slice} lane {lane}"
+                        "slice {slice} lane {lane}, stretches {stretches}"
                     );
                 }
             }

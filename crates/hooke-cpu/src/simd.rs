@@ -113,9 +113,15 @@ pub trait Simd: Copy {
     /// `sum` plus `value` with its sign flipped there, rounded once (one fused multiply-add
     /// with AVX2).
     fn add_signed(self, sum: Self::V, value: Self::V, sign: Self::V) -> Self::V;
+    /// Each point's fourth word in all four of its words, for two points loaded as a pair
+    /// ([`Simd::point_pairs_at`]): a stretch's `k` beside its `d`.
+    fn fourths(self, pairs: Self::V) -> Self::V;
     /// Stores lane `k` of `x`, `y` and `z` as point `k` of `out` (at its [`point_slot`]), its
     /// fourth word a copy of z (which nothing reads).
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
+    /// Stores 8 springs' stretches: lane `k`'s `d` as point `k`'s x, y and z, and its `k` as
+    /// the point's fourth word (see [`Simd::pull`]).
+    fn store_stretches(self, d: [Self::V; 3], k: Self::V, out: &mut [Point; LANES]);
     /// Lane `k` of x, y and z from point `k` of `points` (at its [`point_slot`]): what
     /// [`Simd::store_points`] stored.
     fn load_points(self, points: &[Point; LANES]) -> [Self::V; 3];
@@ -218,9 +224,19 @@ impl<const FUSED: bool> Simd for Portable<FUSED> {
         std::array::from_fn(|lane| sum[lane] + value[lane] * sign[lane])
     }
     #[inline(always)]
+    fn fourths(self, pairs: Block) -> Block {
+        std::array::from_fn(|word| pairs[4 * (word / 4) + 3])
+    }
+    #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
         for lane in 0..LANES {
             out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], z[lane]];
+        }
+    }
+    #[inline(always)]
+    fn store_stretches(self, [x, y, z]: [Block; 3], k: Block, out: &mut [Point; LANES]) {
+        for lane in 0..LANES {
+            out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], k[lane]];
         }
     }
     #[inline(always)]
@@ -474,6 +490,10 @@ mod avx2 {
             unsafe { _mm256_fmadd_ps(value, sign, sum) }
         }
         #[inline(always)]
+        fn fourths(self, pairs: __m256) -> __m256 {
+            unsafe { _mm256_permute_ps::<0xFF>(pairs) }
+        }
+        #[inline(always)]
         fn store_points(self, [x, y, z]: [__m256; 3], out: &mut [Point; LANES]) {
             unsafe {
                 // The transpose of `gather_points`: points (k, k + 4) in each register, which
@@ -490,6 +510,21 @@ mod avx2 {
                 _mm256_storeu_ps(base.add(8), p15);
                 _mm256_storeu_ps(base.add(16), p26);
                 _mm256_storeu_ps(base.add(24), p37);
+            }
+        }
+        #[inline(always)]
+        fn store_stretches(self, [x, y, z]: [__m256; 3], k: __m256, out: &mut [Point; LANES]) {
+            unsafe {
+                // As `store_points`, with k as the fourth word.
+                let xy01 = _mm256_unpacklo_ps(x, y);
+                let xy23 = _mm256_unpackhi_ps(x, y);
+                let zk01 = _mm256_unpacklo_ps(z, k);
+                let zk23 = _mm256_unpackhi_ps(z, k);
+                let base = out.as_mut_ptr().cast::<f32>();
+                _mm256_storeu_ps(base, _mm256_shuffle_ps::<0x44>(xy01, zk01));
+                _mm256_storeu_ps(base.add(8), _mm256_shuffle_ps::<0xEE>(xy01, zk01));
+                _mm256_storeu_ps(base.add(16), _mm256_shuffle_ps::<0x44>(xy23, zk23));
+                _mm256_storeu_ps(base.add(24), _mm256_shuffle_ps::<0xEE>(xy23, zk23));
             }
         }
         #[inline(always)]

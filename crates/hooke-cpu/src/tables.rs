@@ -55,6 +55,18 @@ fn stiffness_of(model: &Model, per_entry: impl FnOnce() -> Vec<f32>) -> Stiffnes
     }
 }
 
+/// Whether gather's rows of `model` so numbered gather their neighbours as points (an
+/// irregular mesh's, see `IndexRows::new`): gather then adds each spring's force with fused
+/// multiply-adds (`kernels::gather_slice`), and scatter stores its springs' stretches to add
+/// them the same way ([`SpringTable::stretches`]), so that the two give the same bits. Built
+/// from the gather table itself, so that the two cannot disagree.
+pub(crate) fn sums_fused(model: &Model, numbering: &Numbering) -> bool {
+    gather_table(model, numbering)
+        .neighbor
+        .point_offsets()
+        .is_some()
+}
+
 pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
     let adjacency = &model.adjacency;
     let (slices, entries) = Slices::build(
@@ -305,9 +317,11 @@ pub(crate) fn scatter_tables(
             if whole { tail(slice) as u8 } else { 0 }
         })
         .collect();
+    let stretches = sums_fused(model, numbering);
     let incidence = IncidenceTable {
         slices,
         tails,
+        stretches,
         entry: IndexRows::new(
             into_blocks(entries),
             !B_END,
@@ -318,7 +332,7 @@ pub(crate) fn scatter_tables(
     // The force pass reads the positions as points when the spring forces are points, and
     // then every row of both ends as point offsets (rows whose first ends are a slice's
     // vertices load those from the axes).
-    let form = if incidence.entry.mostly_gathered() {
+    let form = if incidence.entry.mostly_gathered() || stretches {
         RowForm::Points
     } else {
         RowForm::Runs
@@ -340,6 +354,7 @@ pub(crate) fn scatter_tables(
         )),
         stiffness: stiffness_of(model, || order.per_slot(|s| model.stiffnesses[s] as f32)),
         slots: order.slots.len(),
+        stretches,
     };
     (springs, incidence)
 }
@@ -368,7 +383,8 @@ mod tests {
 
     /// Scatter keeps a grid's spring forces in three axes (its incidence rows load with
     /// vector loads) and an irregular mesh's as one point per spring (its rows are gathered
-    /// lane by lane). The solver tests on both kinds of mesh hold either to the same bits.
+    /// lane by lane), there as stretches, summed as gather sums them. The solver tests on
+    /// both kinds of mesh hold either to the same bits.
     #[test]
     fn scatter_stores_spring_forces_as_points_where_incidence_rows_are_gathered() {
         for (mesh, vertices, points) in [
@@ -379,7 +395,7 @@ mod tests {
                 springs,
                 incidence,
                 spring_forces,
-            } = topology_of(mesh, vertices, Method::Scatter)
+            } = topology_of(mesh.clone(), vertices, Method::Scatter)
             else {
                 unreachable!("scatter builds scatter tables");
             };
@@ -395,6 +411,10 @@ mod tests {
                 SpringForces::Points(rows) => (rows.len(), 16),
             };
             assert_eq!(matches!(spring_forces, SpringForces::Points(_)), points);
+            // Where gather sums fused (it reads points too), the points are stretches.
+            let gathers_points = table_of(mesh, vertices).neighbor.point_offsets().is_some();
+            assert_eq!(gathers_points, points);
+            assert_eq!((springs.stretches, incidence.stretches), (points, points));
             assert_eq!(rows, springs.a.len() + 1);
             assert_eq!(spring_forces.bytes(), rows * LANES * bytes_per_slot);
         }
