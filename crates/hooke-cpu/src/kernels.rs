@@ -358,9 +358,9 @@ pub enum SpringForces {
 }
 
 impl SpringForces {
-    /// Points when most incidence rows load lane by lane, or the slots hold stretches.
+    /// Points where the incidence table reads them ([`IncidenceTable::forces_as_points`]).
     pub fn for_incidence(incidence: &IncidenceTable, spring_rows: usize) -> Self {
-        if incidence.entry.mostly_gathered() || incidence.stretches {
+        if incidence.forces_as_points() {
             Self::Points(vec![[[0.0; 4]; LANES]; spring_rows + 1])
         } else {
             Self::Axes(Soa::zeros(spring_rows + 1))
@@ -416,6 +416,15 @@ pub struct IncidenceTable {
     /// Whether the spring slots hold stretches, each force `k d` then added as gather adds
     /// it; see [`SpringTable::stretches`].
     pub stretches: bool,
+}
+
+impl IncidenceTable {
+    /// Whether scatter keeps its spring slots as points (and its force pass reads the
+    /// positions as points): when most incidence rows load lane by lane, and always for
+    /// stretches, whose `k` takes a point's fourth word.
+    pub fn forces_as_points(&self) -> bool {
+        self.entry.mostly_gathered() || self.stretches
+    }
 }
 
 /// Per-vertex integration constants (see the module docs).

@@ -120,7 +120,7 @@ pub trait Simd: Copy {
     /// fourth word a copy of z (which nothing reads).
     fn store_points(self, value: [Self::V; 3], out: &mut [Point; LANES]);
     /// Stores 8 springs' stretches: lane `k`'s `d` as point `k`'s x, y and z, and its `k` as
-    /// the point's fourth word (see [`Simd::pull`]).
+    /// the point's fourth word (read back with [`Simd::fourths`]).
     fn store_stretches(self, d: [Self::V; 3], k: Self::V, out: &mut [Point; LANES]);
     /// Lane `k` of x, y and z from point `k` of `points` (at its [`point_slot`]): what
     /// [`Simd::store_points`] stored.
@@ -229,9 +229,7 @@ impl<const FUSED: bool> Simd for Portable<FUSED> {
     }
     #[inline(always)]
     fn store_points(self, [x, y, z]: [Block; 3], out: &mut [Point; LANES]) {
-        for lane in 0..LANES {
-            out[point_slot(lane as u32) as usize] = [x[lane], y[lane], z[lane], z[lane]];
-        }
+        self.store_stretches([x, y, z], z, out);
     }
     #[inline(always)]
     fn store_stretches(self, [x, y, z]: [Block; 3], k: Block, out: &mut [Point; LANES]) {

@@ -58,25 +58,44 @@ fn stiffness_of(model: &Model, per_entry: impl FnOnce() -> Vec<f32>) -> Stiffnes
 /// Whether gather's rows of `model` so numbered gather their neighbours as points (an
 /// irregular mesh's, see `IndexRows::new`): gather then adds each spring's force with fused
 /// multiply-adds (`kernels::gather_slice`), and scatter stores its springs' stretches to add
-/// them the same way ([`SpringTable::stretches`]), so that the two give the same bits. Built
-/// from the gather table itself, so that the two cannot disagree.
+/// them the same way ([`SpringTable::stretches`]), so that the two give the same bits. The
+/// gather table's own neighbour rows decide ([`neighbor_rows`]), so the two cannot disagree.
 pub(crate) fn sums_fused(model: &Model, numbering: &Numbering) -> bool {
-    gather_table(model, numbering)
-        .neighbor
+    let (_, neighbors) = Slices::build(
+        model,
+        numbering,
+        |_, e| neighbor_of(model, numbering, e),
+        |k| k as u32,
+    );
+    neighbor_rows(numbering, neighbors)
         .point_offsets()
         .is_some()
 }
 
+/// Gather's neighbour of adjacency entry `e`, numbered internally.
+fn neighbor_of(model: &Model, numbering: &Numbering, e: usize) -> u32 {
+    numbering.internal[model.adjacency.neighbors[e] as usize]
+}
+
+/// Gather's neighbour rows from each entry's neighbour (a padding lane's its own vertex).
+fn neighbor_rows(numbering: &Numbering, neighbors: Vec<u32>) -> IndexRows {
+    IndexRows::new(
+        into_blocks(neighbors),
+        u32::MAX,
+        numbering.padded_len,
+        // The force pass reads the positions as points when most rows are gathered.
+        RowForm::PointsIfGathered,
+    )
+}
+
 pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable {
-    let adjacency = &model.adjacency;
     let (slices, entries) = Slices::build(
         model,
         numbering,
         |_, e| {
-            let spring = adjacency.springs[e] as usize;
-            let neighbor = numbering.internal[adjacency.neighbors[e] as usize];
+            let spring = model.adjacency.springs[e] as usize;
             (
-                neighbor,
+                neighbor_of(model, numbering, e),
                 model.rest_lengths[spring] as f32,
                 model.stiffnesses[spring] as f32,
             )
@@ -85,13 +104,7 @@ pub(crate) fn gather_table(model: &Model, numbering: &Numbering) -> GatherTable 
     );
     GatherTable {
         slices,
-        neighbor: IndexRows::new(
-            into_blocks(entries.iter().map(|e| e.0).collect()),
-            u32::MAX,
-            numbering.padded_len,
-            // The force pass reads the positions as points when most rows are gathered.
-            RowForm::PointsIfGathered,
-        ),
+        neighbor: neighbor_rows(numbering, entries.iter().map(|e| e.0).collect()),
         rest_length: ValueRows::new(into_blocks(entries.iter().map(|e| e.1).collect())),
         stiffness: stiffness_of(model, || entries.iter().map(|e| e.2).collect()),
     }
@@ -332,7 +345,7 @@ pub(crate) fn scatter_tables(
     // The force pass reads the positions as points when the spring forces are points, and
     // then every row of both ends as point offsets (rows whose first ends are a slice's
     // vertices load those from the axes).
-    let form = if incidence.entry.mostly_gathered() || stretches {
+    let form = if incidence.forces_as_points() {
         RowForm::Points
     } else {
         RowForm::Runs
