@@ -1175,18 +1175,6 @@ pub fn accumulate_and_integrate(
     }
 }
 
-/// The forces of spring row `row` on its `a` ends.
-#[inline(always)]
-fn spring_row_force<S: Simd, const POINTS: bool>(
-    simd: S,
-    springs: &SpringTable,
-    positions: Positions<'_>,
-    row: usize,
-) -> [S::V; 3] {
-    let (a, b, stiffness, rest) = spring_row_inputs::<S, POINTS>(simd, springs, positions, row);
-    spring_force_rows(simd, a, b, stiffness, rest)
-}
-
 /// A spring row's `a` ends, `b` ends, stiffness and rest length.
 type RowInputs<V> = ([V; 3], [V; 3], V, V);
 
@@ -1270,8 +1258,9 @@ fn spring_rows<S: Simd, const POINTS: bool>(
                 .zip(oz.iter_mut())
                 .enumerate()
             {
-                let [f0, f1, f2] =
-                    spring_row_force::<S, POINTS>(simd, springs, positions, first_row + k);
+                let (a, b, stiffness, rest) =
+                    spring_row_inputs::<S, POINTS>(simd, springs, positions, first_row + k);
+                let [f0, f1, f2] = spring_force_rows(simd, a, b, stiffness, rest);
                 simd.store(f0, fx);
                 simd.store(f1, fy);
                 simd.store(f2, fz);
