@@ -5,9 +5,12 @@ use glam::{DVec3, Vec3};
 use hooke_core::{collide, handles, selfcollide};
 use rayon::prelude::*;
 
-use crate::CpuSolver;
+use crate::early::EarlyStep;
+use crate::kernels::{self, VertexChunk};
 use crate::layout::LANES;
 use crate::simd::{Point, point_slot};
+use crate::view::Positions;
+use crate::{CpuSolver, Topology, sweep};
 
 /// A step's new positions as the solver keeps them, lent to self-collision: by axis in blocks
 /// of [`LANES`], and as one 16-byte point per vertex where the integration wrote them (the
@@ -54,10 +57,17 @@ impl selfcollide::Points for SolverPoints<'_> {
 impl CpuSolver {
     /// Parts vertices that came too close to each other (see `hooke_core::selfcollide`), in
     /// mesh order so every solver sorts the same keys the same way. With `timed`, returns
-    /// where its time went (`None` without self-collision).
-    pub(crate) fn self_collide(&mut self, timed: bool) -> Option<selfcollide::PartTimes> {
+    /// where its time went (`None` without self-collision). With `early`, the next step's
+    /// slices outside the passes' zone run beside them (see [`crate::early`]; the caller has
+    /// checked that they may).
+    pub(crate) fn self_collide(
+        &mut self,
+        timed: bool,
+        early: bool,
+    ) -> Option<selfcollide::PartTimes> {
         let config = self.self_collision?;
         self.self_collider.time_parts(timed);
+        let buffers = early.then(|| sweep::Buffers::of(self, false));
         // The step's new positions, where the solver keeps them (its numbering, by axis, and
         // as points where the integration wrote them).
         let points = SolverPoints {
@@ -67,12 +77,40 @@ impl CpuSolver {
             },
             points: self.points_fresh.then_some(self.points.as_slice()),
         };
-        let moves = self.self_collider.resolve(
-            &points,
-            &self.inverse_masses,
-            &self.model.adjacency,
-            &config,
-        );
+        let moves = match (&buffers, &self.topology) {
+            (Some(buffers), Topology::Gather(table)) => {
+                let (isa, integrator) = (self.options.instruction_set, &self.integrator);
+                let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
+                    kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
+                };
+                let slices = self.numbering.slice_count();
+                let beside = EarlyStep::new(buffers, &kernel, slices);
+                #[cfg(test)]
+                let eager = crate::early::Eager(&beside);
+                #[cfg(test)]
+                let offered: &dyn selfcollide::Beside = match self.early_eagerly {
+                    true => &eager,
+                    false => &beside,
+                };
+                #[cfg(not(test))]
+                let offered: &dyn selfcollide::Beside = &beside;
+                let moves = self.self_collider.resolve_beside(
+                    &points,
+                    &self.inverse_masses,
+                    &self.model.adjacency,
+                    &config,
+                    Some(offered),
+                );
+                self.early = Some(beside.done());
+                moves
+            }
+            _ => self.self_collider.resolve(
+                &points,
+                &self.inverse_masses,
+                &self.model.adjacency,
+                &config,
+            ),
+        };
         // Only moved vertices are written back; each move shifts the step's motion too.
         let mut watch = selfcollide::Stopwatch::start(timed);
         let internal = &self.numbering.internal;

@@ -14,6 +14,7 @@
 
 mod blocks;
 mod collision;
+mod early;
 mod external;
 pub mod kernels;
 mod lanes;
@@ -195,6 +196,12 @@ pub struct CpuSolver {
     blocks: Option<blocks::Blocks>,
     /// Where the spring forces of sweeps over `blocks` go, made at the first (see [`ring`]).
     force_ring: std::sync::OnceLock<Option<ring::ForceRing>>,
+    /// The slices of the coming step that ran beside the last step's self-collision (see
+    /// [`early`]).
+    early: Option<early::Done>,
+    /// Tests: run those slices as soon as the zone is offered, on the thread that offers it.
+    #[cfg(test)]
+    early_eagerly: bool,
     steps_taken: u64,
 }
 
@@ -285,6 +292,9 @@ impl CpuSolver {
             points: Vec::new(),
             next_points: Vec::new(),
             points_fresh: false,
+            early: None,
+            #[cfg(test)]
+            early_eagerly: false,
             next: Soa::zeros(slices),
             delta: Soa::zeros(slices),
             inverse_masses: selfcollide::inverse_masses(model),
@@ -462,7 +472,14 @@ impl CpuSolver {
     /// accumulation), integration, collision. With `times`, forces and integration run as
     /// separate passes, each timed; without, they are fused into one pass per vertex chunk,
     /// which keeps each vertex's force in registers. Both give bit-identical states.
-    fn step_once(&mut self, mut times: Option<&mut PhaseTimes>) -> Result<(), SimError> {
+    ///
+    /// With `more` (another step follows in the same call, untimed), the next step's spring
+    /// forces and integration may begin beside this step's self-collision (see [`early`]).
+    fn step_once(
+        &mut self,
+        mut times: Option<&mut PhaseTimes>,
+        more: bool,
+    ) -> Result<(), SimError> {
         let start = Instant::now();
         self.tear();
         let tearing = start.elapsed();
@@ -483,7 +500,8 @@ impl CpuSolver {
         let start = Instant::now();
         let bad_ball = self.collide();
         self.move_handles();
-        let self_collision = self.self_collide(times.is_some());
+        let early = more && times.is_none() && all_finite && self.can_step_early();
+        let self_collision = self.self_collide(times.is_some(), early);
         if let Some(times) = times {
             times.collision = start.elapsed();
             times.self_collision = self_collision;
@@ -572,6 +590,9 @@ impl CpuSolver {
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let (next, delta) = (&mut self.next, &mut self.delta);
+        if let Some(done) = self.early.take() {
+            return self.rest_of_early_step(done);
+        }
         let all_finite = match &mut self.topology {
             Topology::Gather(table) => {
                 let current = Positions::new(current, points);
@@ -617,6 +638,42 @@ impl CpuSolver {
         };
         self.points_integrated(writes_points);
         all_finite
+    }
+
+    /// Whether the next step's spring forces and integration may begin beside this step's
+    /// self-collision (see [`early`]): another thread to run it, gather reading the positions
+    /// by axis, and nothing but self-collision acting between the steps' spring forces.
+    fn can_step_early(&self) -> bool {
+        rayon::current_num_threads() > 1
+            && matches!(self.topology, Topology::Gather(_))
+            && !self.reads_points
+            && self.tears.rule().is_none()
+            && self.external.is_none()
+            && self.no_colliders_or_handles()
+    }
+
+    /// The fused step's slices that did not run beside the last step's self-collision
+    /// (`done` did); true if every result of the step is finite.
+    fn rest_of_early_step(&mut self, done: early::Done) -> bool {
+        let isa = self.options.instruction_set;
+        let slices = self.numbering.slice_count();
+        let left = early::left_over(&done.ranges, slices, SLICES_PER_TASK);
+        let buffers = sweep::Buffers::of(self, false);
+        let Topology::Gather(table) = &self.topology else {
+            unreachable!("only gather steps early");
+        };
+        let integrator = &self.integrator;
+        let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
+            kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
+        };
+        // SAFETY: step 1 of the buffers reads `current` and writes `next` and the deltas, each
+        // task its own slices (`left` are disjoint); nothing else runs meanwhile.
+        let finite = left
+            .into_par_iter()
+            .map(|slices| unsafe { buffers.step(1, slices, true, &kernel) })
+            .reduce(|| true, |a, b| a && b);
+        self.points_integrated(false);
+        finite && done.finite
     }
 
     /// Forces (and accumulation) into a per-vertex buffer, then integration, each pass timed.
@@ -956,7 +1013,7 @@ impl Solver for CpuSolver {
     fn step_timed(&mut self) -> Result<(PhaseTimes, TimingSource), SimError> {
         let pool = std::sync::Arc::clone(&self.pool);
         let mut times = PhaseTimes::default();
-        pool.install(|| self.step_once(Some(&mut times)))?;
+        pool.install(|| self.step_once(Some(&mut times), false))?;
         Ok((times, TimingSource::WallClock))
     }
 
@@ -970,7 +1027,7 @@ impl Solver for CpuSolver {
                     self.step_sweep(depth)?;
                     left -= depth;
                 } else {
-                    self.step_once(None)?;
+                    self.step_once(None, left > 1)?;
                     left -= 1;
                 }
             }

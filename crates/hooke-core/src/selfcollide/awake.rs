@@ -10,10 +10,28 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Work that the pool's other threads take up between the parallel passes they are kept
+/// awake for: small pieces, each run whole by one thread, so that a pass handed out meanwhile
+/// waits at most one piece for them.
+pub trait Idle: Sync {
+    /// Runs one piece if one is ready; false if none is.
+    fn run_one(&self) -> bool;
+}
+
+/// Nothing to take up.
+pub struct NoIdle;
+
+impl Idle for NoIdle {
+    fn run_one(&self) -> bool {
+        false
+    }
+}
+
 /// Runs `work` on the current thread while every other thread of the current pool stays
-/// awake, running whatever parallel work `work` hands out and spinning in between. Returns
-/// `work`'s result; the other threads go back to the pool when it returns.
-pub fn with_pool_awake<R: Send>(work: impl FnOnce() -> R + Send) -> R {
+/// awake, running whatever parallel work `work` hands out, else a piece of `idle`, and
+/// spinning in between. Returns `work`'s result; the other threads go back to the pool when it
+/// returns, each once its piece of `idle` is done.
+pub fn with_pool_awake<R: Send>(idle: &dyn Idle, work: impl FnOnce() -> R + Send) -> R {
     let others = rayon::current_num_threads().saturating_sub(1);
     if others == 0 {
         return work();
@@ -23,8 +41,9 @@ pub fn with_pool_awake<R: Send>(work: impl FnOnce() -> R + Send) -> R {
         for _ in 0..others {
             scope.spawn(|_| {
                 while !done.load(Ordering::Acquire) {
-                    // Run one pending task of the pool if there is one, else wait a moment.
-                    if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                    // Run one pending task of the pool if there is one, else a piece of
+                    // `idle`, else wait a moment.
+                    if rayon::yield_now() != Some(rayon::Yield::Executed) && !idle.run_one() {
                         std::hint::spin_loop();
                     }
                 }
@@ -48,7 +67,7 @@ mod tests {
             let pool = crate::selfcollide::pool_of(threads);
             let runs = std::sync::atomic::AtomicUsize::new(0);
             let sums: Vec<u64> = pool.install(|| {
-                with_pool_awake(|| {
+                with_pool_awake(&NoIdle, || {
                     runs.fetch_add(1, Ordering::Relaxed);
                     (0..50u64)
                         .map(|pass| (0..10_000u64).into_par_iter().map(|i| i * pass).sum())

@@ -43,6 +43,7 @@
 //! vertices all move far but together, cost nothing more than one at rest. Everything is
 //! float32 with a margin that covers its rounding, and any non-finite position fails the proof.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use glam::{DVec3, Vec3, Vec4};
@@ -260,8 +261,9 @@ pub struct Culling {
     order: Vec<u32>,
     /// Every vertex, patch after patch (`PATCH` slots each, the last one shorter).
     members: Vec<u32>,
-    /// Where the positions' owner keeps each of `members` ([`Points::place`]).
-    places: Vec<u32>,
+    /// Where the positions' owner keeps each of `members` ([`Points::place`]); shared with
+    /// the step's [`Zone`].
+    places: Arc<[u32]>,
     /// `R_i`, a frame per patch.
     references: Vec<Frame>,
     /// Where each patch's 8 rows start, if its members fill 8 of the owner's blocks
@@ -281,9 +283,10 @@ pub struct Culling {
     /// The near pairs: first those that springs join (two springs at most, fixed when
     /// built), then those adopted from the far search.
     near: Vec<NearPair>,
-    /// Each patch's near patches that springs join, sorted (rows of a CSR table).
-    near_offsets: Vec<u32>,
-    near_patches: Vec<u32>,
+    /// Each patch's near patches that springs join, sorted (rows of a CSR table); shared
+    /// with the step's [`Zone`].
+    near_offsets: Arc<[u32]>,
+    near_patches: Arc<[u32]>,
     /// How many of `near` springs join; the rest are adopted.
     joined_pairs: usize,
     /// Each patch's adopted near patches numbered above it (a pair is listed under its
@@ -319,6 +322,54 @@ pub struct Culling {
     /// did): the rest of it went to the pairs of patches. Zero unless `timing`.
     measuring: Duration,
     pub(super) timing: bool,
+}
+
+/// The vertices a step's local passes may move, and those springs join to them, as found
+/// right after the proof ([`Culling::zone`]): its owner may meanwhile work on the others, which
+/// stay where they are for the whole step, and whose neighbours do too.
+#[derive(Debug)]
+pub struct Zone {
+    /// Boxes around the suspects at the proof, and how far from them a vertex the passes
+    /// move may lie.
+    groups: Vec<(Vec3, Vec3)>,
+    reach: f32,
+    /// Patches that may hold a vertex the passes move: those whose boxes come within
+    /// `reach` of one of `groups`.
+    moving: Vec<u32>,
+    places: Arc<[u32]>,
+    near_offsets: Arc<[u32]>,
+    near_patches: Arc<[u32]>,
+}
+
+impl Zone {
+    /// Whether `point` lies within the reach of the suspects' boxes (along every axis), as
+    /// every vertex the passes may move did at the proof.
+    pub fn reaches(&self, point: Vec3) -> bool {
+        self.groups
+            .iter()
+            .any(|&(low, high)| box_gap((low, high), (point, point)) < self.reach)
+    }
+
+    /// Calls `each` with the place ([`Points::place`]) of every vertex of the patches that
+    /// may hold one the passes move, and of the patches within two springs of those: every
+    /// vertex they may move, every vertex a spring joins to one, and some more. Each place
+    /// once.
+    pub fn each_place(&self, mut each: impl FnMut(u32)) {
+        let mut seen = vec![false; self.near_offsets.len().saturating_sub(1)];
+        for &p in &self.moving {
+            let row =
+                self.near_offsets[p as usize] as usize..self.near_offsets[p as usize + 1] as usize;
+            for &q in &self.near_patches[row] {
+                if !std::mem::replace(&mut seen[q as usize], true) {
+                    let first = q as usize * PATCH;
+                    let last = (first + PATCH).min(self.places.len());
+                    self.places[first..last]
+                        .iter()
+                        .for_each(|&place| each(place));
+                }
+            }
+        }
+    }
 }
 
 /// What a check found of some pairs: whether one is within the distance plus the margin
@@ -542,6 +593,48 @@ impl Culling {
         self.patches_near_by(low, high, reach, |p, _| each(p));
     }
 
+    /// The patches that may hold a vertex a step's local passes move: every patch whose box
+    /// at the last proof came within `reach` of a suspect's box (the suspects' boxes as the
+    /// proof left them, before any widening), with the patches near them (see [`Zone`]).
+    /// `reach` is how far from those boxes a vertex may lie and still be made suspect by a
+    /// chain of widenings before the last pass.
+    pub fn zone(&self, reach: f32) -> Zone {
+        // The suspects' boxes, merged where they come within `reach` of each other: a walk
+        // of the hierarchy per group of them rather than per suspect patch (some 100 at
+        // 512^2 in contact). A merged box holds its parts, so it finds every patch they do.
+        let mut groups: Vec<(Vec3, Vec3)> = Vec::new();
+        for &p in &self.suspect_list {
+            let b = self.suspect_box_of(p);
+            match groups.iter_mut().find(|g| box_gap(**g, b) < reach) {
+                Some(g) => *g = (g.0.min(b.0), g.1.max(b.1)),
+                None => groups.push(b),
+            }
+        }
+        let mut seen = vec![false; self.patches.len()];
+        let mut moving = Vec::new();
+        for &(low, high) in &groups {
+            self.patches_near(low, high, reach, |p| {
+                if !std::mem::replace(&mut seen[p as usize], true) {
+                    moving.push(p);
+                }
+            });
+        }
+        Zone {
+            groups,
+            reach,
+            moving,
+            places: Arc::clone(&self.places),
+            near_offsets: Arc::clone(&self.near_offsets),
+            near_patches: Arc::clone(&self.near_patches),
+        }
+    }
+
+    /// How far from where a vertex that travelled past the margin got to a widening makes
+    /// vertices suspect, m (see [`Culling::widen`]).
+    pub fn widening_reach(&self) -> f32 {
+        self.clear_at + self.margin
+    }
+
     /// [`Culling::patches_near`], each patch with how far its box lies from `low..high`
     /// along the axis that parts them most. A walk with a larger reach meets the patches a
     /// smaller one would, in the same order: a box holds its halves' boxes, so a node the
@@ -583,7 +676,7 @@ impl Culling {
         cover_reach: f32,
         covers: &mut Vec<u32>,
     ) {
-        let reach = self.clear_at + self.margin;
+        let reach = self.widening_reach();
         let mut found = Vec::new();
         self.patches_near_by(point, point, reach.max(cover_reach), |p, outside| {
             if outside < reach {
@@ -1735,8 +1828,73 @@ pub(crate) mod tests {
     use super::*;
     use crate::mesh::{GridPlane, grid};
     use crate::selfcollide::{
-        BlockPoints, Resolver, SelfCollision, apply, exact_pairs, joined, resolve,
+        Beside, BlockPoints, Idle, Resolver, SelfCollision, apply, exact_pairs, joined, resolve,
     };
+
+    /// A [`Beside`] that keeps the zone it is offered, as a flag per place, and has no work.
+    struct Recorded {
+        places: usize,
+        inside: std::sync::Mutex<Option<Vec<bool>>>,
+        zone: std::sync::Mutex<Option<Zone>>,
+    }
+
+    impl Idle for Recorded {
+        fn run_one(&self) -> bool {
+            false
+        }
+    }
+
+    impl Beside for Recorded {
+        fn offer(&self, zone: Zone) {
+            let mut inside = vec![false; self.places];
+            zone.each_place(|place| inside[place as usize] = true);
+            *self.inside.lock().expect("unpoisoned") = Some(inside);
+            *self.zone.lock().expect("unpoisoned") = Some(zone);
+        }
+    }
+
+    /// `resolver`'s moves of `points` (in mesh order: a vertex's place is itself), offering
+    /// the zone beside them, and the zone if one was offered. Asserts that every vertex moved
+    /// lay within its reach of the suspects, and that it holds every vertex moved and every
+    /// vertex a spring joins to one (`what` names the case).
+    fn moves_within_zone(
+        resolver: &mut Resolver,
+        points: &[Vec3],
+        weights: &[f32],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+        what: &str,
+    ) -> (Vec<(u32, Vec3)>, Option<Vec<bool>>) {
+        let recorded = Recorded {
+            places: points.len(),
+            inside: std::sync::Mutex::new(None),
+            zone: std::sync::Mutex::new(None),
+        };
+        let moves = resolver.resolve_beside(points, weights, adjacency, config, Some(&recorded));
+        let inside = recorded.inside.into_inner().expect("unpoisoned");
+        if let Some(zone) = recorded.zone.into_inner().expect("unpoisoned") {
+            // Where the vertex lay at the proof, not only its patch: within the reach.
+            for &(v, _) in &moves {
+                let at = points[v as usize];
+                assert!(
+                    zone.reaches(at),
+                    "{what}: vertex {v} moved from beyond the reach"
+                );
+            }
+        }
+        if let Some(inside) = &inside {
+            for &(v, _) in &moves {
+                assert!(
+                    inside[v as usize],
+                    "{what}: vertex {v} moved outside the zone"
+                );
+                for &w in adjacency.neighbors_of(v) {
+                    assert!(inside[w as usize], "{what}: {w}, joined to {v}, outside");
+                }
+            }
+        }
+        (moves, inside)
+    }
 
     /// The springs of the generator's grid, `columns` vertices a row (the scripts place the
     /// vertices themselves).
@@ -1956,6 +2114,13 @@ pub(crate) mod tests {
             let mut stored = Resolver::default();
             // Measuring patches straight from a solver's blocks, which hold them whole.
             let mut blocked = Resolver::default();
+            // Offering the zone beside the passes (which then stay local), at any share of
+            // suspects.
+            let mut beside = Resolver {
+                local_at_most: 1,
+                ..Resolver::default()
+            };
+            let mut zones = 0;
             // Patches grouped by a layout unlike the points (the script's last step).
             let mut grouped = Resolver::default();
             grouped.group_by(&script(side, spacing, steps, steps, &mut rng.clone()));
@@ -1986,6 +2151,12 @@ pub(crate) mod tests {
                 );
                 apply(&mut local_only, &moves);
                 assert_eq!(local_only, plain, "{name}, step {t}, local");
+                let what = format!("{name}, step {t}, beside");
+                let (moves, zone) = three.install(|| {
+                    moves_within_zone(&mut beside, &start, &weights, &adjacency, &config, &what)
+                });
+                assert_eq!(by_vertex(&moves), by_vertex(&expected), "{what}");
+                zones += usize::from(zone.is_some());
                 let moves = grouped.resolve(&start[..], &weights, &adjacency, &config);
                 assert_eq!(
                     by_vertex(&moves),
@@ -2043,6 +2214,10 @@ pub(crate) mod tests {
                 local.local_passes()
             );
             widened += local.culling().widened;
+            // Zones offered, which must have held the moves. (These sheets are too small for
+            // one to leave much out: a zone reaches 3 passes' moves and widenings around the
+            // suspects, 13 spacings here.)
+            assert!(zones > 5, "{name}: {zones} zones");
             eprintln!(
                 "{name}: cleared {}, not {}, moved {moved_steps}, local passes {} (any share {}), \
                  suspects {:?}",
@@ -2100,6 +2275,7 @@ pub(crate) mod tests {
             local_at_most: 1,
             ..Resolver::default()
         };
+        let points_before = points.clone();
         let moves = local.resolve(&points[..], &weights, &adjacency, &config);
         assert_eq!(moves, expected);
         apply(&mut points, &moves);
@@ -2111,6 +2287,19 @@ pub(crate) mod tests {
             .count();
         assert!(bystanders > 5, "{bystanders} bystanders moved");
         assert_eq!(local.local_passes(), 4);
+        // The zone offered beside the passes holds the bystanders too.
+        let mut beside = Resolver::default();
+        let (moves, zone) = moves_within_zone(
+            &mut beside,
+            &points_before,
+            &weights,
+            &adjacency,
+            &config,
+            "lattice",
+        );
+        assert_eq!(moves, expected);
+        assert!(zone.is_some(), "no zone offered");
+        assert_eq!(beside.local_passes(), 4);
     }
 
     /// Checks the proof of `positions` against the exact search: clear exactly when no

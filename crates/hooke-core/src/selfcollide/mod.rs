@@ -38,9 +38,10 @@ use rayon::prelude::*;
 
 use ahead::Ahead;
 pub use along_surface::{along_surface, layered_patches, patch_order, split_patches};
-use awake::with_pool_awake;
+pub use awake::Idle;
+use awake::{NoIdle, with_pool_awake};
 use binning::{Binning, Entry, key_of, vertex_of};
-pub use culling::{Culling, Proof};
+pub use culling::{Culling, Proof, Zone};
 use keyed::{Keyed, sorted_with_suspects};
 use nearby::Nearby;
 pub use parts::{PartTimes, Stopwatch};
@@ -402,6 +403,14 @@ impl Default for Resolver {
     }
 }
 
+/// Work a resolver's caller does beside a step's local passes, on the vertices outside the
+/// step's [`Zone`] (see [`Resolver::resolve_beside`]).
+pub trait Beside: Idle {
+    /// The step's zone, once the proof has found it (at most once a step, before any pass);
+    /// [`Idle::run_one`] is asked for pieces of work from then until the step's passes end.
+    fn offer(&self, zone: Zone);
+}
+
 impl Resolver {
     /// [`resolve`]: the same moves, each vertex's in the same order (a local pass lists its
     /// moves in an order of its own, see `local_pass`). The passes are skipped when the culling
@@ -425,9 +434,31 @@ impl Resolver {
         adjacency: &Adjacency,
         config: &SelfCollision,
     ) -> Vec<(u32, Vec3)> {
+        self.resolve_beside(points, weights, adjacency, config, None)
+    }
+
+    /// [`Resolver::resolve`], offering `beside` the step's [`Zone`] once the proof has shown
+    /// that only a few vertices' pairs can be too close; the pool's other threads then take
+    /// up `beside`'s pieces of work whenever the passes leave them waiting. The passes stay
+    /// local for the rest of the step once it is offered (a local pass gives a full pass's
+    /// moves, so that changes no bit), so no vertex outside the zone moves.
+    pub fn resolve_beside<P: Points + ?Sized>(
+        &mut self,
+        points: &P,
+        weights: &[f32],
+        adjacency: &Adjacency,
+        config: &SelfCollision,
+        beside: Option<&dyn Beside>,
+    ) -> Vec<(u32, Vec3)> {
         self.parts = PartTimes::default();
+        let idle: &dyn Idle = match beside {
+            Some(beside) => beside,
+            None => &NoIdle,
+        };
         // Dozens of short parallel passes: the pool's other threads wait for them awake.
-        with_pool_awake(|| self.prove_then_pass(points, weights, adjacency, config))
+        with_pool_awake(idle, || {
+            self.prove_then_pass(points, weights, adjacency, config, beside)
+        })
     }
 
     /// [`Resolver::resolve`] on the current thread.
@@ -437,12 +468,12 @@ impl Resolver {
         weights: &[f32],
         adjacency: &Adjacency,
         config: &SelfCollision,
+        beside: Option<&dyn Beside>,
     ) -> Vec<(u32, Vec3)> {
-        let tried = self.unproved == 0;
-        let local = if !tried {
+        let proof = if self.unproved > 0 {
             self.unproved -= 1;
             self.unproved_steps += 1;
-            false
+            None
         } else {
             let mut watch = Stopwatch::start(self.timing);
             let proof = self
@@ -450,36 +481,55 @@ impl Resolver {
                 .prove(points, adjacency, config.distance as f32);
             self.parts.measuring = self.culling.measuring();
             self.parts.pairs = watch.lap().saturating_sub(self.parts.measuring);
-            match proof {
-                Proof::Clear => {
-                    self.backoff = 0;
-                    return Vec::new();
-                }
-                Proof::Local => true,
-                Proof::Nothing => false,
+            if proof == Proof::Clear {
+                self.backoff = 0;
+                return Vec::new();
             }
+            Some(proof)
         };
-        self.passes(points, weights, adjacency, config, tried, local)
+        self.passes(points, weights, adjacency, config, proof, beside)
     }
 
-    /// The passes of a step the culling did not clear.
+    /// How far from the suspects' boxes of the proof a vertex that a step's local passes
+    /// move may lie, m. A pass moves a vertex by at most the distance for each of the `2
+    /// window` neighbours of its window; a vertex moved past the margin after a pass makes
+    /// suspect those within [`Culling::widening_reach`] of where it got to, which move from
+    /// the next pass on. Along a chain of such widenings the passes that move each link
+    /// follow one another, so the last link starts at most `K - 1` passes' moves and `K - 1`
+    /// widenings' reach from a suspect's box. (A hundredth more, and a hundredth of the
+    /// distance, for rounding.)
+    fn moving_reach(&self, config: &SelfCollision) -> f32 {
+        let distance = config.distance as f32;
+        let pass = 2.0 * config.window as f32 * distance;
+        let links = config.grids.saturating_sub(1) as f32;
+        links * (pass + self.culling.widening_reach()) * 1.01 + 0.01 * distance
+    }
+
+    /// The passes of a step the culling did not clear (`proof`: what it showed; `None` when
+    /// the step ran without one).
     fn passes<P: Points + ?Sized>(
         &mut self,
         points: &P,
         weights: &[f32],
         adjacency: &Adjacency,
         config: &SelfCollision,
-        tried: bool,
-        mut local: bool,
+        proof: Option<Proof>,
+        beside: Option<&dyn Beside>,
     ) -> Vec<(u32, Vec3)> {
+        let (tried, mut local) = (proof.is_some(), proof == Some(Proof::Local));
         let n = points.count();
         if local {
             self.nearby.begin(n, self.culling.patch_count());
         }
         let mut all_moves = Vec::new();
         let mut copied = false;
+        let mut offered = false;
         for k in 0..config.grids {
-            local &= self.culling.suspects().len() * self.local_at_most <= n;
+            local &= offered || self.culling.suspects().len() * self.local_at_most <= n;
+            if let Some(beside) = beside.filter(|_| local && k == 0) {
+                beside.offer(self.culling.zone(self.moving_reach(config)));
+                offered = true;
+            }
             let moves = if local {
                 self.local_passes += 1;
                 let mut watch = Stopwatch::start(self.timing);
