@@ -641,10 +641,12 @@ impl CpuSolver {
     }
 
     /// Whether the next step's spring forces and integration may begin beside this step's
-    /// self-collision (see [`early`]): another thread to run it, gather reading the positions
-    /// by axis, and nothing but self-collision acting between the steps' spring forces.
+    /// self-collision (see [`early`]): another thread to run it, a mesh large enough, gather
+    /// reading the positions by axis, and nothing but self-collision acting between the
+    /// steps' spring forces.
     fn can_step_early(&self) -> bool {
         rayon::current_num_threads() > 1
+            && self.numbering.slice_count() >= early::MIN_SLICES
             && matches!(self.topology, Topology::Gather(_))
             && !self.reads_points
             && self.tears.rule().is_none()
