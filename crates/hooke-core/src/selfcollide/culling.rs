@@ -2216,7 +2216,7 @@ pub(crate) mod tests {
             widened += local.culling().widened;
             // Zones offered, which must have held the moves. (These sheets are too small for
             // one to leave much out: a zone reaches 3 passes' moves and widenings around the
-            // suspects, 13 spacings here.)
+            // suspects, about 14 spacings here.)
             assert!(zones > 5, "{name}: {zones} zones");
             eprintln!(
                 "{name}: cleared {}, not {}, moved {moved_steps}, local passes {} (any share {}), \
