@@ -6,10 +6,8 @@ use hooke_core::{collide, handles, selfcollide};
 use rayon::prelude::*;
 
 use crate::early::EarlyStep;
-use crate::kernels::{self, VertexChunk};
 use crate::layout::LANES;
 use crate::simd::{Point, point_slot};
-use crate::view::Positions;
 use crate::{CpuSolver, Topology, sweep};
 
 /// A step's new positions as the solver keeps them, lent to self-collision: by axis in blocks
@@ -79,10 +77,8 @@ impl CpuSolver {
         };
         let moves = match (&buffers, &self.topology) {
             (Some(buffers), Topology::Gather(table)) => {
-                let (isa, integrator) = (self.options.instruction_set, &self.integrator);
-                let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
-                    kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
-                };
+                let isa = self.options.instruction_set;
+                let kernel = sweep::gather_run(isa, table, &self.integrator);
                 let slices = self.numbering.slice_count();
                 let beside = EarlyStep::new(buffers, &kernel, slices);
                 #[cfg(test)]

@@ -583,6 +583,9 @@ impl CpuSolver {
 
     /// Forces and integration in one pass per vertex chunk; true if every result is finite.
     fn forces_and_integration_fused(&mut self, has_extra: bool) -> bool {
+        if let Some(done) = self.early.take() {
+            return self.rest_of_early_step(done);
+        }
         let isa = self.options.instruction_set;
         let points = self.refresh_points().then_some(self.points.as_flattened());
         let writes_points = self.writes_points();
@@ -590,9 +593,6 @@ impl CpuSolver {
         let extra = has_extra.then_some(&self.extra_forces);
         let (current, integrator) = (&self.current, &self.integrator);
         let (next, delta) = (&mut self.next, &mut self.delta);
-        if let Some(done) = self.early.take() {
-            return self.rest_of_early_step(done);
-        }
         let all_finite = match &mut self.topology {
             Topology::Gather(table) => {
                 let current = Positions::new(current, points);
@@ -664,16 +664,14 @@ impl CpuSolver {
         let Topology::Gather(table) = &self.topology else {
             unreachable!("only gather steps early");
         };
-        let integrator = &self.integrator;
-        let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
-            kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
-        };
+        let kernel = sweep::gather_run(isa, table, &self.integrator);
         // SAFETY: step 1 of the buffers reads `current` and writes `next` and the deltas, each
         // task its own slices (`left` are disjoint); nothing else runs meanwhile.
         let finite = left
             .into_par_iter()
             .map(|slices| unsafe { buffers.step(1, slices, true, &kernel) })
             .reduce(|| true, |a, b| a && b);
+        drop(kernel); // it borrows the tables, which `points_integrated` borrows with the rest
         self.points_integrated(false);
         finite && done.finite
     }

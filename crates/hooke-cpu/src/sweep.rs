@@ -46,11 +46,11 @@ use hooke_core::SimError;
 use rayon::prelude::*;
 
 use crate::blocks::Blocks;
-use crate::kernels::{self, Block, GatherTable, Point, VertexChunk};
+use crate::kernels::{self, Block, GatherTable, Integrator, Point, VertexChunk};
 use crate::layout::LANES;
 use crate::ring::ForceRing;
 use crate::view::Positions;
-use crate::{CpuSolver, Topology};
+use crate::{CpuSolver, InstructionSet, Topology};
 
 /// Steps per sweep at most. Four halve what two stream from memory again; six took 1-13% off
 /// the 2048^2 grid's gather step in four pairs of runs on an Intel VM (no change beyond its
@@ -237,6 +237,18 @@ pub(crate) struct Buffers {
 // `Buffers::step`).
 unsafe impl Send for Buffers {}
 unsafe impl Sync for Buffers {}
+
+/// The fused gather step of a run of slices, as [`Buffers::step`] runs it: nothing but the
+/// springs acts on the vertices.
+pub(crate) fn gather_run<'a>(
+    isa: InstructionSet,
+    table: &'a GatherTable,
+    integrator: &'a Integrator,
+) -> impl Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync + 'a {
+    move |positions, chunk| {
+        kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
+    }
+}
 
 impl Buffers {
     /// The buffers of `solver`'s sweep: `current` and `next` in turn, with their points when
@@ -471,10 +483,7 @@ impl CpuSolver {
         let finite = match &mut self.topology {
             Topology::Gather(table) => {
                 let sweep = self.sweep.as_ref().expect("can_sweep checked the plan");
-                let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
-                    kernels::gather_and_integrate(isa, table, integrator, positions, None, chunk)
-                };
-                sweep.run(depth, &buffers, &kernel)
+                sweep.run(depth, &buffers, &gather_run(isa, table, integrator))
             }
             Topology::Scatter {
                 springs,
