@@ -10,8 +10,9 @@
 //! ([`PIECE`]), so that a pass handed out meanwhile waits at most one piece; the next step
 //! runs only the slices left. Same arithmetic per vertex, so the same bits.
 //!
-//! Only where nothing else acts between the two steps' spring forces: no tearing, external
-//! forces, colliders or handles, and a force pass that reads the positions by axis.
+//! Only within one `step(n)`, on 2 threads or more, on gather meshes of [`MIN_SLICES`] or
+//! more whose force pass reads the positions by axis, and where nothing else acts between
+//! the two steps' spring forces: no tearing, external forces, colliders or handles.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
