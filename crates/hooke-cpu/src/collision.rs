@@ -82,20 +82,13 @@ impl CpuSolver {
                 let slices = self.numbering.slice_count();
                 let beside = EarlyStep::new(buffers, &kernel, slices);
                 #[cfg(test)]
-                let eager = crate::early::Eager(&beside);
-                #[cfg(test)]
-                let offered: &dyn selfcollide::Beside = match self.early_eagerly {
-                    true => &eager,
-                    false => &beside,
-                };
-                #[cfg(not(test))]
-                let offered: &dyn selfcollide::Beside = &beside;
+                let beside = beside.eagerly(self.early_eagerly);
                 let moves = self.self_collider.resolve_beside(
                     &points,
                     &self.inverse_masses,
                     &self.model.adjacency,
                     &config,
-                    Some(offered),
+                    Some(&beside),
                 );
                 self.early = Some(beside.done());
                 moves

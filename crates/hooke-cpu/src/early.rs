@@ -55,6 +55,11 @@ pub(crate) struct EarlyStep<'a, K> {
     /// Pieces handed out so far, those touched among them (may run past their count).
     taken: AtomicUsize,
     finite: AtomicBool,
+    /// Tests: every piece runs as soon as the zone is offered, on the thread that offers it,
+    /// so that a test sees pieces run whatever the machine's scheduling leaves the waiting
+    /// threads.
+    #[cfg(test)]
+    eagerly: bool,
 }
 
 impl<'a, K> EarlyStep<'a, K>
@@ -73,6 +78,17 @@ where
             touched: OnceLock::new(),
             taken: AtomicUsize::new(0),
             finite: AtomicBool::new(true),
+            #[cfg(test)]
+            eagerly: false,
+        }
+    }
+
+    /// Tests: with `on`, every piece runs as soon as the zone is offered (see `eagerly`).
+    #[cfg(test)]
+    pub fn eagerly(self, on: bool) -> Self {
+        Self {
+            eagerly: on,
+            ..self
         }
     }
 
@@ -163,26 +179,10 @@ where
 {
     fn offer(&self, zone: Zone) {
         *self.zone.lock().unwrap_or_else(|e| e.into_inner()) = Some(zone);
-    }
-}
-
-/// Runs every piece of the step it wraps as soon as the zone is offered, on the thread that offers it, so
-/// that a test sees pieces run whatever the machine's scheduling leaves the waiting threads.
-#[cfg(test)]
-pub(crate) struct Eager<'a, B>(pub &'a B);
-
-#[cfg(test)]
-impl<B: Beside> Idle for Eager<'_, B> {
-    fn run_one(&self) -> bool {
-        self.0.run_one()
-    }
-}
-
-#[cfg(test)]
-impl<B: Beside> Beside for Eager<'_, B> {
-    fn offer(&self, zone: Zone) {
-        self.0.offer(zone);
-        while self.0.run_one() {}
+        #[cfg(test)]
+        if self.eagerly {
+            while self.run_one() {}
+        }
     }
 }
 

@@ -406,10 +406,10 @@ impl CpuSolver {
         };
     }
 
-    /// Whether every vertex stays where the integration puts it (no colliders, handles or
-    /// self-collision), so the points it writes are the next step's positions.
-    fn positions_final_after_integration(&self) -> bool {
-        self.no_colliders_or_handles() && self.self_collision.is_none()
+    /// Whether nothing acts between one step's spring forces and the next's but
+    /// self-collision, if on: no tearing, external forces, colliders or handles.
+    fn only_self_collision_between_steps(&self) -> bool {
+        self.tears.rule().is_none() && self.external.is_none() && self.no_colliders_or_handles()
     }
 
     /// Whether no collider or handle moves a vertex after the integration (self-collision
@@ -649,9 +649,7 @@ impl CpuSolver {
             && self.numbering.slice_count() >= early::MIN_SLICES
             && matches!(self.topology, Topology::Gather(_))
             && !self.reads_points
-            && self.tears.rule().is_none()
-            && self.external.is_none()
-            && self.no_colliders_or_handles()
+            && self.only_self_collision_between_steps()
     }
 
     /// The fused step's slices that did not run beside the last step's self-collision

@@ -449,9 +449,8 @@ impl CpuSolver {
     /// Whether the next steps may run in one sweep (see the module docs).
     pub(crate) fn can_sweep(&self) -> bool {
         self.sweep_depth() > 1
-            && self.tears.rule().is_none()
-            && self.external.is_none()
-            && self.positions_final_after_integration()
+            && self.only_self_collision_between_steps()
+            && self.self_collision.is_none()
     }
 
     /// Steps per sweep at most where the mesh is laid out to sweep (large enough, neighbours
