@@ -84,6 +84,10 @@ type Frame = [[f32; PATCH]; 3];
 /// Patches per subtree below which the hierarchy is searched on the calling thread.
 const PARALLEL_PATCHES: u32 = 64;
 
+/// Patches per subtree below which `refit` fits the boxes on the calling thread: 8 tasks at
+/// 512^2 (4,096 patches).
+const REFIT_TASK_PATCHES: u32 = 512;
+
 /// A patch: its state this step and since its references were taken.
 #[derive(Clone, Copy, Debug)]
 struct Patch {
@@ -223,33 +227,39 @@ impl Node {
     }
 }
 
-/// Fits the boxes of the subtree whose root is `nodes[0]` (the nodes are in depth-first
-/// order, so a subtree's are a run: the root, then its first half's, then its second's) around
-/// its patches' boxes. Subtrees of [`PARALLEL_PATCHES`] or more patches fit their halves side
-/// by side: on one thread the 512^2 grid's 8,191 nodes took 47-52 us a step while the other
-/// thread waited, side by side 38-45 (in contact, on an Intel Xeon VM's 2 vCPUs).
-fn refit(nodes: &mut [Node], patches: &[Patch]) {
-    let Some((root, rest)) = nodes.split_first_mut() else {
+/// Fits the boxes of the subtree whose root is `nodes[0]`, at `offset` in the whole hierarchy,
+/// around its patches' `boxes`. The nodes are in depth-first order, so a subtree's are a run
+/// (the root, then its first half's, then its second's) and every node comes before its
+/// children: one pass from the last node to the first fits each after its children. Subtrees
+/// of [`REFIT_TASK_PATCHES`] or more fit their halves side by side. (Recursing down to every
+/// leaf with a join at each subtree of 64 patches or more, reading each leaf's box from its
+/// 112-byte [`Patch`] in the hierarchy's order, took 28-56 us a step at 512^2 on 2 threads;
+/// see the performance log.)
+fn refit(nodes: &mut [Node], offset: usize, boxes: &[(Vec3, Vec3)]) {
+    let Some(root) = nodes.first() else {
         return;
     };
-    let (low, high) = match root.children {
-        None => {
-            let patch = &patches[root.first as usize];
-            (patch.low, patch.high)
-        }
-        Some([a, b]) => {
-            let (first, second) = rest.split_at_mut((b - a) as usize);
-            if root.end - root.first >= PARALLEL_PATCHES {
-                rayon::join(|| refit(first, patches), || refit(second, patches));
-            } else {
-                refit(first, patches);
-                refit(second, patches);
+    if let Some([a, b]) = root.children
+        && root.end - root.first >= REFIT_TASK_PATCHES
+    {
+        let (a, b) = (a as usize, b as usize);
+        let (root, rest) = nodes.split_first_mut().expect("a root");
+        let (first, second) = rest.split_at_mut(b - a);
+        rayon::join(|| refit(first, a, boxes), || refit(second, b, boxes));
+        let (a, b) = (&first[0], &second[0]);
+        (root.low, root.high) = (a.low.min(b.low), a.high.max(b.high));
+        return;
+    }
+    for i in (0..nodes.len()).rev() {
+        let (low, high) = match nodes[i].children {
+            None => boxes[nodes[i].first as usize],
+            Some([a, b]) => {
+                let (a, b) = (&nodes[a as usize - offset], &nodes[b as usize - offset]);
+                (a.low.min(b.low), a.high.max(b.high))
             }
-            let (a, b) = (&first[0], &second[0]);
-            (a.low.min(b.low), a.high.max(b.high))
-        }
-    };
-    (root.low, root.high) = (low, high);
+        };
+        (nodes[i].low, nodes[i].high) = (low, high);
+    }
 }
 
 /// The culling's state, kept by a solver from one step to the next.
@@ -280,6 +290,9 @@ pub struct Culling {
     patches: Vec<Patch>,
     /// Each patch's [`Standing`] this step.
     standings: Vec<Standing>,
+    /// Each patch's box this step ([`Patch::low`], [`Patch::high`]), 24 bytes a patch for
+    /// `refit` to read in the hierarchy's order.
+    boxes: Vec<(Vec3, Vec3)>,
     /// The near pairs: first those that springs join (two springs at most, fixed when
     /// built), then those adopted from the far search.
     near: Vec<NearPair>,
@@ -911,6 +924,7 @@ impl Culling {
             .collect();
         let count = n.div_ceil(PATCH);
         self.standings = vec![Standing::default(); count];
+        self.boxes = vec![(Vec3::ZERO, Vec3::ZERO); count];
         self.patches = self
             .references
             .iter()
@@ -1051,10 +1065,10 @@ impl Culling {
             .zip(self.references.par_iter_mut())
             .zip(self.places.par_chunks(PATCH))
             .zip(self.block_starts.par_iter())
-            .zip(self.standings.par_iter_mut())
+            .zip(self.standings.par_iter_mut().zip(self.boxes.par_iter_mut()))
             .map_init(
                 Scratch::new,
-                |scratch, ((((patch, references), places), starts), standing)| {
+                |scratch, ((((patch, references), places), starts), (standing, bounds))| {
                     let rows = match starts.and_then(|starts| blocks_of(points, &starts)) {
                         Some(rows) => rows,
                         None => {
@@ -1064,11 +1078,12 @@ impl Culling {
                     };
                     let scale = measure_patch(patch, references, &rows, distance);
                     *standing = Standing::of(patch);
+                    *bounds = (patch.low, patch.high);
                     scale
                 },
             )
             .try_reduce(|| 0.0, |a, b| Some(a.max(b)))?;
-        refit(&mut self.nodes, &self.patches);
+        refit(&mut self.nodes, 0, &self.boxes);
         Some(scale)
     }
 
@@ -2400,6 +2415,36 @@ pub(crate) mod tests {
                 displaced > 0,
                 "origin {origin}: every patch on its references"
             );
+        }
+    }
+
+    /// Each node's box is the smallest that holds its two halves' (a leaf's: its patch's),
+    /// also where `refit` fits the halves side by side (a sheet of more than
+    /// [`REFIT_TASK_PATCHES`] patches, on 3 threads).
+    #[test]
+    fn each_node_box_is_the_smallest_holding_its_halves() {
+        let (side, spacing, steps) = (192u32, 0.005f32, 4u32);
+        let adjacency = Adjacency::from_springs((side * side) as usize, &grid_springs(side, side));
+        let pool = crate::selfcollide::pool_of(3);
+        let mut culling = Culling::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for t in 0..=steps {
+            let sheet = folding_sheet(side, spacing, t, steps, &mut rng);
+            pool.install(|| culling.prove(&sheet[..], &adjacency, 0.5 * spacing));
+            assert!(culling.patch_count() > REFIT_TASK_PATCHES as usize);
+            for (i, node) in culling.nodes.iter().enumerate() {
+                let fitted = match node.children {
+                    None => {
+                        let patch = &culling.patches[node.first as usize];
+                        (patch.low, patch.high)
+                    }
+                    Some([a, b]) => {
+                        let (a, b) = (&culling.nodes[a as usize], &culling.nodes[b as usize]);
+                        (a.low.min(b.low), a.high.max(b.high))
+                    }
+                };
+                assert_eq!((node.low, node.high), fitted, "step {t}, node {i}");
+            }
         }
     }
 
