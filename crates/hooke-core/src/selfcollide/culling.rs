@@ -233,8 +233,8 @@ impl Node {
 /// children: one pass from the last node to the first fits each after its children. Subtrees
 /// of [`REFIT_TASK_PATCHES`] or more fit their halves side by side. (Recursing down to every
 /// leaf with a join at each subtree of 64 patches or more, reading each leaf's box from its
-/// 112-byte [`Patch`] in the hierarchy's order, took 28-56 us a step at 512^2 on 2 threads;
-/// see the performance log.)
+/// 112-byte [`Patch`] in the hierarchy's order, took 21-74 us a step at 512^2 on 2 threads in
+/// contact, against 10-42 this way; see the performance log.)
 fn refit(nodes: &mut [Node], offset: usize, boxes: &[(Vec3, Vec3)]) {
     let Some(root) = nodes.first() else {
         return;
