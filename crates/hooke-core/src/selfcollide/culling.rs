@@ -236,14 +236,13 @@ impl Node {
 /// 112-byte [`Patch`] in the hierarchy's order, took 21-74 us a step at 512^2 on 2 threads in
 /// contact, against 10-42 this way; see the performance log.)
 fn refit(nodes: &mut [Node], offset: usize, boxes: &[(Vec3, Vec3)]) {
-    let Some(root) = nodes.first() else {
+    let Some((root, rest)) = nodes.split_first_mut() else {
         return;
     };
     if let Some([a, b]) = root.children
         && root.end - root.first >= REFIT_TASK_PATCHES
     {
         let (a, b) = (a as usize, b as usize);
-        let (root, rest) = nodes.split_first_mut().expect("a root");
         let (first, second) = rest.split_at_mut(b - a);
         rayon::join(|| refit(first, a, boxes), || refit(second, b, boxes));
         let (a, b) = (&first[0], &second[0]);
