@@ -109,7 +109,7 @@ pub struct BenchArgs {
     // Five by default, of 100 steps (one of 300 before, at the same cost in steps): one
     // round's figures carry no range, and on this project's VM they moved with its spells
     // unseen (the irregular gather's paired ratio read 0.90-1.42 over eight runs of one
-    // round; five rounds showed rounds from 0.55 to 3.52 beside medians of 0.76-1.37).
+    // round; five rounds showed rounds from 0.52 to 3.52 beside medians of 0.76-1.37).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub rounds: u32,
     #[arg(long, value_enum, default_value_t = OutputFormat::Table)]
