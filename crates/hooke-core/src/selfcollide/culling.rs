@@ -225,6 +225,11 @@ impl Node {
     fn gap(&self, other: &Node) -> f32 {
         box_gap((self.low, self.high), (other.low, other.high))
     }
+
+    /// The smallest box holding its box and `other`'s.
+    fn hull(&self, other: &Node) -> (Vec3, Vec3) {
+        (self.low.min(other.low), self.high.max(other.high))
+    }
 }
 
 /// Fits the boxes of the subtree whose root is `nodes[0]`, at `offset` in the whole hierarchy,
@@ -245,17 +250,13 @@ fn refit(nodes: &mut [Node], offset: usize, boxes: &[(Vec3, Vec3)]) {
         let (a, b) = (a as usize, b as usize);
         let (first, second) = rest.split_at_mut(b - a);
         rayon::join(|| refit(first, a, boxes), || refit(second, b, boxes));
-        let (a, b) = (&first[0], &second[0]);
-        (root.low, root.high) = (a.low.min(b.low), a.high.max(b.high));
+        (root.low, root.high) = first[0].hull(&second[0]);
         return;
     }
     for i in (0..nodes.len()).rev() {
         let (low, high) = match nodes[i].children {
             None => boxes[nodes[i].first as usize],
-            Some([a, b]) => {
-                let (a, b) = (&nodes[a as usize - offset], &nodes[b as usize - offset]);
-                (a.low.min(b.low), a.high.max(b.high))
-            }
+            Some([a, b]) => nodes[a as usize - offset].hull(&nodes[b as usize - offset]),
         };
         (nodes[i].low, nodes[i].high) = (low, high);
     }
