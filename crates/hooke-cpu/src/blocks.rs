@@ -175,7 +175,8 @@ impl Blocks {
     }
 
     /// One scatter step, block by block: every spring's force into `spring_forces`, and every
-    /// vertex summed and integrated into `out`. True if every new position is finite.
+    /// vertex summed and integrated into `out`, but for what `begun` says ran beside the last
+    /// step's self-collision (see `crate::early`). True if every new position is finite.
     #[allow(clippy::too_many_arguments)] // the plain step's inputs, passed on to its kernels
     pub(crate) fn step(
         &self,
@@ -188,6 +189,7 @@ impl Blocks {
         points: Option<&[Point]>,
         extra: Option<&Soa>,
         out: Outputs,
+        begun: &Begun,
     ) -> bool {
         let forces = Forces::new(spring_forces);
         // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
@@ -204,12 +206,15 @@ impl Blocks {
             let band = self.bands[b]..self.bands[b + 1];
             let mut finite = true;
             for k in band.clone() {
-                // SAFETY: block k's rows belong to this band alone, and no task reads them
-                // before this one has written them (the module docs).
-                let rows = unsafe { forces.rows(self.rows[k]..self.rows[k + 1]) };
-                let positions = Positions::new(current, points);
-                kernels::spring_forces(isa, springs, positions, self.rows[k], rows);
-                let ready = |s: &usize| self.first_block[*s] as usize >= band.start;
+                if !begun.rows(k) {
+                    // SAFETY: block k's rows belong to this band alone, and no task reads them
+                    // before this one has written them (the module docs).
+                    let rows = unsafe { forces.rows(self.rows[k]..self.rows[k + 1]) };
+                    let positions = Positions::new(current, points);
+                    kernels::spring_forces(isa, springs, positions, self.rows[k], rows);
+                }
+                let ready =
+                    |s: &usize| self.first_block[*s] as usize >= band.start && !begun.slice(*s);
                 finite &=
                     runs(self.slices(k..k + 1), ready).fold(true, |all, r| integrate(r) & all);
             }
@@ -218,7 +223,8 @@ impl Blocks {
         let first = first.reduce(|| true, |a, b| a && b);
         let second = (0..self.band_count()).into_par_iter().map(|b| {
             let band = self.bands[b]..self.bands[b + 1];
-            let waiting = |s: &usize| (self.first_block[*s] as usize) < band.start;
+            let waiting =
+                |s: &usize| (self.first_block[*s] as usize) < band.start && !begun.slice(*s);
             runs(self.slices(band.clone()), waiting).fold(true, |all, r| integrate(r) & all)
         });
         first & second.reduce(|| true, |a, b| a && b)
@@ -298,15 +304,7 @@ impl Blocks {
     ) -> R {
         // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
         let view = unsafe { forces.view() };
-        let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
-            let current = Positions {
-                points: None,
-                ..positions
-            };
-            kernels::accumulate_and_integrate(
-                isa, incidence, view, integrator, current, None, chunk,
-            )
-        };
+        let kernel = summing_run(isa, incidence, view, integrator);
         let work = Work {
             rows: &|j: usize, blocks: Range<usize>| {
                 let (first, end) = (self.rows[blocks.start], self.rows[blocks.end]);
@@ -508,8 +506,161 @@ impl BlockSweep {
     }
 }
 
+/// What of a scatter step ran beside the last step's self-collision (see `crate::early`): per
+/// block, whether its force rows were written, and per slice, whether it was summed and
+/// integrated. Empty where nothing was.
+#[derive(Debug, Default)]
+pub(crate) struct Begun {
+    pub rows: Vec<bool>,
+    pub slices: Vec<bool>,
+}
+
+impl Begun {
+    fn rows(&self, block: usize) -> bool {
+        self.rows.get(block).copied().unwrap_or(false)
+    }
+
+    fn slice(&self, slice: usize) -> bool {
+        self.slices.get(slice).copied().unwrap_or(false)
+    }
+}
+
+/// A scatter mesh's next step block by block, in pieces that self-collision's waiting threads
+/// take up beside its passes (see `crate::early`): runs of a block's force rows, computed
+/// from the step's new positions (`next`), and runs of its slices, summed and integrated into
+/// the next step's positions (`current`) and the deltas.
+pub(crate) struct NextStep<'a> {
+    blocks: &'a Blocks,
+    isa: InstructionSet,
+    springs: &'a SpringTable,
+    incidence: &'a IncidenceTable,
+    forces: Forces,
+    integrator: &'a Integrator,
+    buffers: &'a Buffers,
+    /// `forces` points into the spring forces this borrows.
+    _forces: std::marker::PhantomData<&'a mut SpringForces>,
+}
+
+impl<'a> NextStep<'a> {
+    #[allow(clippy::too_many_arguments)] // the step's inputs, passed on to its kernels
+    pub(crate) fn new(
+        blocks: &'a Blocks,
+        isa: InstructionSet,
+        springs: &'a SpringTable,
+        incidence: &'a IncidenceTable,
+        spring_forces: &'a mut SpringForces,
+        integrator: &'a Integrator,
+        buffers: &'a Buffers,
+    ) -> Self {
+        Self {
+            blocks,
+            isa,
+            springs,
+            incidence,
+            forces: Forces::new(spring_forces),
+            integrator,
+            buffers,
+            _forces: std::marker::PhantomData,
+        }
+    }
+
+    pub(crate) fn block_count(&self) -> usize {
+        self.blocks.rows.len() - 1
+    }
+
+    /// Every block, the bands' first blocks first, then their second, and so on: what runs
+    /// early then shortens each band of the step left alike. (Begun from the first block,
+    /// the early blocks emptied the first band or two, and the bands left took the step as
+    /// long as before: it waited for the thread with the most of them.) Each band's own
+    /// blocks still come in order, so a block's slices find the rows before them written.
+    pub(crate) fn block_order(&self) -> Vec<usize> {
+        let bands = &self.blocks.bands;
+        let widest = bands.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);
+        (0..widest)
+            .flat_map(|i| {
+                bands
+                    .windows(2)
+                    .map(move |w| w[0] + i)
+                    .zip(bands.windows(2))
+            })
+            .filter(|(k, w)| *k < w[1])
+            .map(|(k, _)| k)
+            .collect()
+    }
+
+    /// The block that slice `slice` belongs to.
+    pub(crate) fn block_of(slice: usize) -> usize {
+        slice / BLOCK_SLICES
+    }
+
+    /// Block `k`'s force rows.
+    pub(crate) fn rows_of(&self, k: usize) -> Range<usize> {
+        self.blocks.rows[k]..self.blocks.rows[k + 1]
+    }
+
+    /// Block `k`'s slices.
+    pub(crate) fn slices_of(&self, k: usize) -> Range<usize> {
+        self.blocks.slices(k..k + 1)
+    }
+
+    /// The blocks whose force rows slice `slice` sums: from the first to its own.
+    pub(crate) fn summed_blocks(&self, slice: usize) -> std::ops::RangeInclusive<usize> {
+        self.blocks.first_block[slice] as usize..=Self::block_of(slice)
+    }
+
+    /// Computes force rows `rows` of the step.
+    ///
+    /// # Safety
+    /// While it runs, no other thread may read or write these rows, nor write the positions
+    /// of the step's ends (`next`).
+    pub(crate) unsafe fn rows(&self, rows: Range<usize>) {
+        // SAFETY: the caller's guarantee.
+        unsafe {
+            let out = self.forces.rows(rows.clone());
+            let positions = self.buffers.positions(1);
+            kernels::spring_forces(self.isa, self.springs, positions, rows.start, out);
+        }
+    }
+
+    /// Sums and integrates `slices`; true if every new position is finite.
+    ///
+    /// # Safety
+    /// Every force row these slices sum (of [`NextStep::summed_blocks`]) must be written, and
+    /// no thread may write it, nor touch these slices' outputs or write the positions their
+    /// springs read, while this runs.
+    pub(crate) unsafe fn slices(&self, slices: Range<usize>) -> bool {
+        // SAFETY: the caller's guarantee.
+        unsafe {
+            let view = self.forces.view();
+            let kernel = summing_run(self.isa, self.incidence, view, self.integrator);
+            self.buffers.step(2, slices, true, &kernel)
+        }
+    }
+}
+
+/// The fused summing and integration of a run of slices, as [`Buffers::step`] runs it, over
+/// the forces of `view`: nothing but the springs acts on the vertices, and the summing reads
+/// the positions as axes.
+fn summing_run<'a>(
+    isa: InstructionSet,
+    incidence: &'a IncidenceTable,
+    view: ForcesView<'a>,
+    integrator: &'a Integrator,
+) -> impl Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync + 'a {
+    move |positions, chunk| {
+        let current = Positions {
+            points: None,
+            ..positions
+        };
+        kernels::accumulate_and_integrate(isa, incidence, view, integrator, current, None, chunk)
+    }
+}
+
 /// The runs of consecutive slices of `slices` that `keep` keeps.
-fn runs(slices: Range<usize>, keep: impl Fn(&usize) -> bool) -> impl Iterator<Item = Range<usize>> {
+pub(crate) fn runs(
+    slices: Range<usize>,
+    keep: impl Fn(&usize) -> bool,
+) -> impl Iterator<Item = Range<usize>> {
     let mut at = slices.start;
     std::iter::from_fn(move || {
         while at < slices.end && !keep(&at) {

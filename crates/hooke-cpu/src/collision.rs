@@ -5,10 +5,10 @@ use glam::{DVec3, Vec3};
 use hooke_core::{collide, handles, selfcollide};
 use rayon::prelude::*;
 
-use crate::early::EarlyStep;
+use crate::early::{EarlyBlocks, EarlyStep};
 use crate::layout::LANES;
 use crate::simd::{Point, point_slot};
-use crate::{CpuSolver, Topology, sweep};
+use crate::{CpuSolver, Topology, blocks, sweep};
 
 /// A step's new positions as the solver keeps them, lent to self-collision: by axis in blocks
 /// of [`LANES`], and as one 16-byte point per vertex where the integration wrote them (the
@@ -75,11 +75,45 @@ impl CpuSolver {
             },
             points: self.points_fresh.then_some(self.points.as_slice()),
         };
-        let moves = match (&buffers, &self.topology) {
+        let isa = self.options.instruction_set;
+        let slices = self.numbering.slice_count();
+        let moves = match (&buffers, &mut self.topology) {
+            (
+                Some(buffers),
+                Topology::Scatter {
+                    springs,
+                    incidence,
+                    spring_forces,
+                },
+            ) => {
+                let blocks = self
+                    .blocks
+                    .as_ref()
+                    .expect("only blocked scatter steps early");
+                let next = blocks::NextStep::new(
+                    blocks,
+                    isa,
+                    springs,
+                    incidence,
+                    spring_forces,
+                    &self.integrator,
+                    buffers,
+                );
+                let beside = EarlyBlocks::new(next);
+                #[cfg(test)]
+                let beside = beside.eagerly(self.early_eagerly);
+                let moves = self.self_collider.resolve_beside(
+                    &points,
+                    &self.inverse_masses,
+                    &self.model.adjacency,
+                    &config,
+                    Some(&beside),
+                );
+                self.early = Some(beside.done());
+                moves
+            }
             (Some(buffers), Topology::Gather(table)) => {
-                let isa = self.options.instruction_set;
                 let kernel = sweep::gather_run(isa, table, &self.integrator);
-                let slices = self.numbering.slice_count();
                 let beside = EarlyStep::new(buffers, &kernel, slices);
                 #[cfg(test)]
                 let beside = beside.eagerly(self.early_eagerly);

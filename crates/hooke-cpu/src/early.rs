@@ -10,9 +10,18 @@
 //! ([`PIECE`]), so that a pass handed out meanwhile waits at most one piece; the next step
 //! runs only the slices left. Same arithmetic per vertex, so the same bits.
 //!
-//! Only within one `step(n)`, on 2 threads or more, on gather meshes of [`MIN_SLICES`] or
-//! more whose force pass reads the positions by axis, and where nothing else acts between
-//! the two steps' spring forces: no tearing, external forces, colliders or handles.
+//! A scatter mesh that steps block by block (see `blocks`) begins its next step by block
+//! ([`EarlyBlocks`]): a block outside the zone has its force rows computed, a run at a time,
+//! and its slices are summed and integrated once every row they sum is written. Every row of
+//! such a block is final: its springs' first ends lie outside the zone, which holds every
+//! vertex within two springs of one the passes may move, so neither end moves. The blocks are
+//! taken a band of the step at a time in turn (see `blocks::NextStep::block_order`). The next
+//! step then computes only the rows left, and sums only the slices left.
+//!
+//! Only within one `step(n)`, on 2 threads or more, on meshes of [`MIN_SLICES`] or more whose
+//! force pass reads the positions by axis (gather, or scatter block by block), and where
+//! nothing else acts between the two steps' spring forces: no tearing, external forces,
+//! colliders or handles.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -20,6 +29,7 @@ use std::sync::{Mutex, OnceLock};
 
 use hooke_core::selfcollide::{Beside, Idle, Zone};
 
+use crate::blocks::{NextStep, runs};
 use crate::kernels::VertexChunk;
 use crate::layout::LANES;
 use crate::sweep::Buffers;
@@ -35,12 +45,56 @@ pub(crate) const MIN_SLICES: usize = 4096;
 /// of slices; one that holds a slice of the zone is left to the next step whole.
 const PIECE: usize = 32;
 
-/// What the next step has done already: its slices in `ranges` (ascending, disjoint), and
-/// whether all their results were finite.
+/// Runs of a block's force rows that [`EarlyBlocks`] hands out apart, and runs of its slices,
+/// kept short so that a pass handed out meanwhile waits little: a block of 1,056 first ends
+/// at 512^2 has some 390 rows of 8 springs and 132 slices, so a run is some 49 rows or 16-17
+/// slices, less work than gather's piece. (4 runs a block read alike in one throwaway run.)
+const BLOCK_PARTS: usize = 8;
+
+/// What the next step has done already: its slices in `ranges` (ascending, disjoint), for
+/// scatter the blocks whose force rows it wrote (`rows`, a flag per block), and whether all
+/// its results were finite.
 #[derive(Debug, Default)]
 pub(crate) struct Done {
     pub ranges: Vec<Range<usize>>,
+    pub rows: Vec<bool>,
     pub finite: bool,
+}
+
+/// The zone until a waiting thread takes it, and what that thread marked of it.
+struct Offered<T> {
+    zone: Mutex<Option<Zone>>,
+    marks: OnceLock<T>,
+}
+
+impl<T> Offered<T> {
+    fn new() -> Self {
+        Self {
+            zone: Mutex::new(None),
+            marks: OnceLock::new(),
+        }
+    }
+
+    fn offer(&self, zone: Zone) {
+        *self.zone.lock().unwrap_or_else(|e| e.into_inner()) = Some(zone);
+    }
+
+    /// What `mark` made of the zone; or, before that, `Err(true)` on the first thread to
+    /// find the zone offered, which marks it (its piece of work), and `Err(false)` while it
+    /// is not.
+    fn marks(&self, mark: impl FnOnce(&Zone) -> T) -> Result<&T, bool> {
+        if let Some(marks) = self.marks.get() {
+            return Ok(marks);
+        }
+        let zone = self.zone.try_lock().ok().and_then(|mut zone| zone.take());
+        match zone {
+            Some(zone) => {
+                let _ = self.marks.set(mark(&zone));
+                Err(true)
+            }
+            None => Err(false),
+        }
+    }
 }
 
 /// The next step, offered to self-collision's waiting threads.
@@ -48,10 +102,8 @@ pub(crate) struct EarlyStep<'a, K> {
     buffers: &'a Buffers,
     kernel: &'a K,
     slices: usize,
-    /// The zone, until a waiting thread takes it to mark the pieces it touches.
-    zone: Mutex<Option<Zone>>,
-    /// A bit per piece that holds a slice of the zone.
-    touched: OnceLock<Vec<u64>>,
+    /// The zone, and a bit per piece that holds a slice of it.
+    touched: Offered<Vec<u64>>,
     /// Pieces handed out so far, those touched among them (may run past their count).
     taken: AtomicUsize,
     finite: AtomicBool,
@@ -74,8 +126,7 @@ where
             buffers,
             kernel,
             slices,
-            zone: Mutex::new(None),
-            touched: OnceLock::new(),
+            touched: Offered::new(),
             taken: AtomicUsize::new(0),
             finite: AtomicBool::new(true),
             #[cfg(test)]
@@ -97,7 +148,7 @@ where
     pub fn done(self) -> Done {
         let pieces = self.slices.div_ceil(PIECE);
         let taken = self.taken.into_inner().min(pieces);
-        let ranges = match self.touched.into_inner() {
+        let ranges = match self.touched.marks.into_inner() {
             Some(touched) => (0..taken)
                 .filter(|&k| !is_set(&touched, k))
                 .map(|k| piece(k, self.slices))
@@ -106,6 +157,7 @@ where
         };
         Done {
             ranges,
+            rows: Vec::new(),
             finite: self.finite.into_inner(),
         }
     }
@@ -136,16 +188,9 @@ where
     K: Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync,
 {
     fn run_one(&self) -> bool {
-        let Some(touched) = self.touched.get() else {
-            // The first thread to find the zone offered marks the pieces it touches.
-            let zone = self.zone.try_lock().ok().and_then(|mut zone| zone.take());
-            return match zone {
-                Some(zone) => {
-                    let _ = self.touched.set(self.touched_by(&zone));
-                    true
-                }
-                None => false,
-            };
+        let touched = match self.touched.marks(|zone| self.touched_by(zone)) {
+            Ok(touched) => touched,
+            Err(marked) => return marked,
         };
         let pieces = self.slices.div_ceil(PIECE);
         loop {
@@ -178,12 +223,150 @@ where
     K: Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync,
 {
     fn offer(&self, zone: Zone) {
-        *self.zone.lock().unwrap_or_else(|e| e.into_inner()) = Some(zone);
+        self.touched.offer(zone);
         #[cfg(test)]
         if self.eagerly {
             while self.run_one() {}
         }
     }
+}
+
+/// A scatter mesh's next step, by block, offered to self-collision's waiting threads (see the
+/// module docs). Each block is [`BLOCK_PARTS`] runs of its force rows and as many of its
+/// slices, handed out in that order, block after block in [`NextStep::block_order`].
+pub(crate) struct EarlyBlocks<'a> {
+    step: NextStep<'a>,
+    /// The blocks in the order they are handed out (see [`NextStep::block_order`]).
+    order: Vec<usize>,
+    /// The zone, and a flag per block that holds a slice of it.
+    touched: Offered<Vec<bool>>,
+    /// Pieces handed out so far (may run past their count).
+    taken: AtomicUsize,
+    /// Per block, its runs of rows not yet written.
+    rows_left: Vec<AtomicUsize>,
+    /// The runs of slices summed and integrated, in no order.
+    slices_done: Mutex<Vec<Range<usize>>>,
+    finite: AtomicBool,
+    /// Tests: as [`EarlyStep`]'s.
+    #[cfg(test)]
+    eagerly: bool,
+}
+
+impl<'a> EarlyBlocks<'a> {
+    pub fn new(step: NextStep<'a>) -> Self {
+        let blocks = step.block_count();
+        Self {
+            order: step.block_order(),
+            step,
+            touched: Offered::new(),
+            taken: AtomicUsize::new(0),
+            rows_left: (0..blocks).map(|_| AtomicUsize::new(BLOCK_PARTS)).collect(),
+            slices_done: Mutex::new(Vec::new()),
+            finite: AtomicBool::new(true),
+            #[cfg(test)]
+            eagerly: false,
+        }
+    }
+
+    /// Tests: with `on`, every piece runs as soon as the zone is offered.
+    #[cfg(test)]
+    pub fn eagerly(self, on: bool) -> Self {
+        Self {
+            eagerly: on,
+            ..self
+        }
+    }
+
+    /// What was done (the waiting threads finish their pieces before the passes' call
+    /// returns).
+    pub fn done(self) -> Done {
+        let rows = self
+            .rows_left
+            .into_iter()
+            .map(|left| left.into_inner() == 0)
+            .collect();
+        let mut ranges = self
+            .slices_done
+            .into_inner()
+            .unwrap_or_else(|e| e.into_inner());
+        ranges.sort_unstable_by_key(|range| range.start);
+        Done {
+            ranges,
+            rows,
+            finite: self.finite.into_inner(),
+        }
+    }
+
+    /// A flag per block that holds a slice of `zone`.
+    fn touched_by(&self, zone: &Zone) -> Vec<bool> {
+        let mut touched = vec![false; self.step.block_count()];
+        zone.each_place(|place| touched[NextStep::block_of(place as usize / LANES)] = true);
+        touched
+    }
+
+    /// Whether every force row that `slice` sums is written.
+    fn summable(&self, slice: usize, touched: &[bool]) -> bool {
+        self.step
+            .summed_blocks(slice)
+            .all(|k| !touched[k] && self.rows_left[k].load(Ordering::Acquire) == 0)
+    }
+}
+
+impl Idle for EarlyBlocks<'_> {
+    fn run_one(&self) -> bool {
+        let touched = match self.touched.marks(|zone| self.touched_by(zone)) {
+            Ok(touched) => touched,
+            Err(marked) => return marked,
+        };
+        let pieces = self.step.block_count() * 2 * BLOCK_PARTS;
+        loop {
+            let t = self.taken.fetch_add(1, Ordering::Relaxed);
+            if t >= pieces {
+                return false;
+            }
+            let (k, part) = (self.order[t / (2 * BLOCK_PARTS)], t % (2 * BLOCK_PARTS));
+            if touched[k] {
+                continue;
+            }
+            if part < BLOCK_PARTS {
+                // SAFETY: each run of rows is handed out once, and nothing else touches the
+                // forces while the passes run; the block lies outside the zone, so no end of
+                // its springs moves in this step.
+                unsafe { self.step.rows(run(self.step.rows_of(k), part)) };
+                self.rows_left[k].fetch_sub(1, Ordering::Release);
+                return true;
+            }
+            let slices = run(self.step.slices_of(k), part - BLOCK_PARTS);
+            let summable = |s: &usize| self.summable(*s, touched);
+            for run in runs(slices, summable) {
+                // SAFETY: the rows these slices sum are written (`summable`) and no thread
+                // writes them again; each run of slices is handed out once; they lie outside
+                // the zone, so nothing they read moves in this step.
+                if !unsafe { self.step.slices(run.clone()) } {
+                    self.finite.store(false, Ordering::Relaxed);
+                }
+                let mut done = self.slices_done.lock().unwrap_or_else(|e| e.into_inner());
+                done.push(run);
+            }
+            return true;
+        }
+    }
+}
+
+impl Beside for EarlyBlocks<'_> {
+    fn offer(&self, zone: Zone) {
+        self.touched.offer(zone);
+        #[cfg(test)]
+        if self.eagerly {
+            while self.run_one() {}
+        }
+    }
+}
+
+/// Run `part` of [`BLOCK_PARTS`] of `range`.
+fn run(range: Range<usize>, part: usize) -> Range<usize> {
+    let at = |p: usize| range.start + range.len() * p / BLOCK_PARTS;
+    at(part)..at(part + 1)
 }
 
 /// The runs of `0..slices` outside `done` (ascending, disjoint), cut into runs of at most
@@ -217,35 +400,43 @@ mod tests {
     use super::*;
     use crate::{CpuSolver, Method};
 
-    /// On the bench's 192^2 sheet in contact with itself (after 1,500 steps), steps begun
-    /// beside self-collision's passes give the states of single steps, which begin none:
-    /// with the pieces run as the zone is offered (so that some surely run), and with them
-    /// left to the waiting threads.
+    /// On the bench's sheet in contact with itself (after 1,500 steps), steps begun beside
+    /// self-collision's passes give the states of single steps, which begin none: with the
+    /// pieces run as the zone is offered (so that some surely run), and with them left to the
+    /// waiting threads. Gather on a 192^2 sheet; scatter on a 256^2 one, the smallest grid
+    /// that steps block by block.
     #[test]
     fn steps_begun_beside_self_collision_give_the_states_of_single_steps() {
-        let mut scene = benchmark_scene(MeshSection::unit_grid(192, 192), 192 * 192);
+        for (method, side) in [(Method::Gather, 192), (Method::Scatter, 256)] {
+            steps_begun_early_give_the_states_of_single_steps(method, side);
+        }
+    }
+
+    fn steps_begun_early_give_the_states_of_single_steps(method: Method, side: u32) {
+        let mut scene = benchmark_scene(MeshSection::unit_grid(side, side), side * side);
         scene.model.collision.self_collision = Some(SelfCollision::for_model(&scene.model));
-        let mut settler = CpuSolver::for_test(&scene, Method::Gather, 2);
+        let mut settler = CpuSolver::for_test(&scene, method, 2);
         settler.step(1500).expect("stable");
         let settled = state_of(&settler);
         for (threads, eagerly) in [(2, true), (3, true), (2, false), (3, false)] {
-            let what = format!("{threads} threads, eagerly: {eagerly}");
-            let mut single = CpuSolver::for_test(&scene, Method::Gather, threads);
-            let mut begun = CpuSolver::for_test(&scene, Method::Gather, threads);
+            let what = format!("{method:?}, {threads} threads, eagerly: {eagerly}");
+            let mut single = CpuSolver::for_test(&scene, method, threads);
+            let mut begun = CpuSolver::for_test(&scene, method, threads);
             assert!(begun.numbering.slice_count() >= MIN_SLICES);
             begun.early_eagerly = eagerly;
             single.write_state(&settled);
             begun.write_state(&settled);
-            let (steps, mut slices) = (20, 0);
+            let (steps, mut slices, mut blocks) = (20, 0, 0);
             let pool = std::sync::Arc::clone(&begun.pool);
+            assert!(pool.install(|| begun.can_step_early()), "{what}");
             for k in 0..steps {
                 single.step(1).expect("stable");
                 pool.install(|| begun.step_once(None, k + 1 < steps))
                     .expect("stable");
-                slices += begun
-                    .early
-                    .as_ref()
-                    .map_or(0, |done| done.ranges.iter().map(Range::len).sum::<usize>());
+                if let Some(done) = &begun.early {
+                    slices += done.ranges.iter().map(Range::len).sum::<usize>();
+                    blocks += done.rows.iter().filter(|&&written| written).count();
+                }
             }
             assert!(begun.early.is_none());
             assert!(state_of(&single) == state_of(&begun), "{what}");
@@ -255,6 +446,12 @@ mod tests {
             let all = begun.numbering.slice_count() * steps;
             assert!(slices < all, "{what}");
             assert!(slices > 0 || !eagerly, "{what}: no slice begun early");
+            // Scatter's slices begun early sum rows written early.
+            let scatter = method == Method::Scatter;
+            assert!(
+                blocks > 0 || !eagerly || !scatter,
+                "{what}: no rows written early"
+            );
         }
     }
 

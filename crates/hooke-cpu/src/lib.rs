@@ -617,6 +617,7 @@ impl CpuSolver {
                         points,
                         extra,
                         out,
+                        &blocks::Begun::default(),
                     )
                 } else {
                     compute_spring_forces(isa, springs, current, points, spring_forces);
@@ -642,25 +643,63 @@ impl CpuSolver {
 
     /// Whether the next step's spring forces and integration may begin beside this step's
     /// self-collision (see [`early`]): another thread to run it, a mesh large enough, gather
-    /// reading the positions by axis, and nothing but self-collision acting between the
-    /// steps' spring forces.
+    /// or scatter block by block, reading the positions by axis, and nothing but
+    /// self-collision acting between the steps' spring forces.
     fn can_step_early(&self) -> bool {
+        let by_block = match self.topology {
+            Topology::Gather(_) => true,
+            Topology::Scatter { .. } => self.blocks.is_some(),
+        };
         rayon::current_num_threads() > 1
             && self.numbering.slice_count() >= early::MIN_SLICES
-            && matches!(self.topology, Topology::Gather(_))
+            && by_block
             && !self.reads_points
             && self.only_self_collision_between_steps()
     }
 
-    /// The fused step's slices that did not run beside the last step's self-collision
-    /// (`done` did); true if every result of the step is finite.
+    /// The fused step's slices (scatter: and force rows) that did not run beside the last
+    /// step's self-collision (`done` did); true if every result of the step is finite.
     fn rest_of_early_step(&mut self, done: early::Done) -> bool {
         let isa = self.options.instruction_set;
         let slices = self.numbering.slice_count();
+        if let Topology::Scatter {
+            springs,
+            incidence,
+            spring_forces,
+        } = &mut self.topology
+        {
+            let blocks = self
+                .blocks
+                .as_ref()
+                .expect("only blocked scatter steps early");
+            let mut begun = blocks::Begun {
+                rows: done.rows,
+                slices: vec![false; slices],
+            };
+            for range in done.ranges {
+                begun.slices[range].fill(true);
+            }
+            let current = &self.current;
+            let out = blocks::Outputs::new(&mut self.next, &mut self.delta, None);
+            let finite = blocks.step(
+                isa,
+                springs,
+                incidence,
+                spring_forces,
+                &self.integrator,
+                current,
+                None,
+                None,
+                out,
+                &begun,
+            );
+            self.points_integrated(false);
+            return finite && done.finite;
+        }
         let left = early::left_over(&done.ranges, slices, SLICES_PER_TASK);
         let buffers = sweep::Buffers::of(self, false);
         let Topology::Gather(table) = &self.topology else {
-            unreachable!("only gather steps early");
+            unreachable!("gather or scatter");
         };
         let kernel = sweep::gather_run(isa, table, &self.integrator);
         // SAFETY: step 1 of the buffers reads `current` and writes `next` and the deltas, each
