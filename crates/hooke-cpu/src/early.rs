@@ -48,7 +48,8 @@ const PIECE: usize = 32;
 /// Runs of a block's force rows that [`EarlyBlocks`] hands out apart, and runs of its slices,
 /// kept short so that a pass handed out meanwhile waits little: a block of 1,056 first ends
 /// at 512^2 has some 390 rows of 8 springs and 132 slices, so a run is some 49 rows or 16-17
-/// slices, less work than gather's piece. (4 runs a block read alike in one throwaway run.)
+/// slices, less work than gather's piece. (Runs of a quarter and of a sixteenth of a block
+/// read alike in throwaway runs: see the performance log, 2026-12-07, twenty-ninth.)
 const BLOCK_PARTS: usize = 8;
 
 /// What the next step has done already: its slices in `ranges` (ascending, disjoint), for
