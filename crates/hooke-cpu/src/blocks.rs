@@ -570,9 +570,9 @@ impl<'a> NextStep<'a> {
 
     /// Every block, the bands' first blocks first, then their second, and so on: what runs
     /// early then shortens each band of the step left alike. (Begun from the first block,
-    /// the early blocks emptied the first band or two, and the bands left took the step as
-    /// long as before: it waited for the thread with the most of them.) Each band's own
-    /// blocks still come in order, so a block's slices find the rows before them written.
+    /// the early blocks would empty the first band or two, and the step would wait as long
+    /// as before for the thread holding the most bands left.) Each band's own blocks still
+    /// come in order, so a block's slices find the rows before them written.
     pub(crate) fn block_order(&self) -> Vec<usize> {
         let bands = &self.blocks.bands;
         let widest = bands.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0);

@@ -77,7 +77,12 @@ impl CpuSolver {
         };
         let isa = self.options.instruction_set;
         let slices = self.numbering.slice_count();
-        let moves = match (&buffers, &mut self.topology) {
+        let (adjacency, weights) = (&self.model.adjacency, &self.inverse_masses);
+        let collider = &mut self.self_collider;
+        let mut resolve = |beside: Option<&dyn selfcollide::Beside>| {
+            collider.resolve_beside(&points, weights, adjacency, &config, beside)
+        };
+        let (moves, done) = match (&buffers, &mut self.topology) {
             (
                 Some(buffers),
                 Topology::Scatter {
@@ -102,38 +107,20 @@ impl CpuSolver {
                 let beside = EarlyBlocks::new(next);
                 #[cfg(test)]
                 let beside = beside.eagerly(self.early_eagerly);
-                let moves = self.self_collider.resolve_beside(
-                    &points,
-                    &self.inverse_masses,
-                    &self.model.adjacency,
-                    &config,
-                    Some(&beside),
-                );
-                self.early = Some(beside.done());
-                moves
+                (resolve(Some(&beside)), Some(beside.done()))
             }
             (Some(buffers), Topology::Gather(table)) => {
                 let kernel = sweep::gather_run(isa, table, &self.integrator);
                 let beside = EarlyStep::new(buffers, &kernel, slices);
                 #[cfg(test)]
                 let beside = beside.eagerly(self.early_eagerly);
-                let moves = self.self_collider.resolve_beside(
-                    &points,
-                    &self.inverse_masses,
-                    &self.model.adjacency,
-                    &config,
-                    Some(&beside),
-                );
-                self.early = Some(beside.done());
-                moves
+                (resolve(Some(&beside)), Some(beside.done()))
             }
-            _ => self.self_collider.resolve(
-                &points,
-                &self.inverse_masses,
-                &self.model.adjacency,
-                &config,
-            ),
+            _ => (resolve(None), None),
         };
+        if done.is_some() {
+            self.early = done;
+        }
         // Only moved vertices are written back; each move shifts the step's motion too.
         let mut watch = selfcollide::Stopwatch::start(timed);
         let internal = &self.numbering.internal;

@@ -62,18 +62,40 @@ pub(crate) struct Done {
     pub finite: bool,
 }
 
-/// The zone until a waiting thread takes it, and what that thread marked of it.
-struct Offered<T> {
+/// What either kind of early step keeps while the passes run: the zone until a waiting thread
+/// takes it, and what that thread marked of it; the pieces handed out so far (may run past
+/// their count); whether every result was finite.
+struct Handout<T> {
     zone: Mutex<Option<Zone>>,
     marks: OnceLock<T>,
+    taken: AtomicUsize,
+    finite: AtomicBool,
+    /// Tests: every piece runs as soon as the zone is offered, on the thread that offers it,
+    /// so that a test sees pieces run whatever the machine's scheduling leaves the waiting
+    /// threads.
+    #[cfg(test)]
+    eagerly: bool,
 }
 
-impl<T> Offered<T> {
+impl<T> Handout<T> {
     fn new() -> Self {
         Self {
             zone: Mutex::new(None),
             marks: OnceLock::new(),
+            taken: AtomicUsize::new(0),
+            finite: AtomicBool::new(true),
+            #[cfg(test)]
+            eagerly: false,
         }
+    }
+
+    /// The next piece to run.
+    fn next(&self) -> usize {
+        self.taken.fetch_add(1, Ordering::Relaxed)
+    }
+
+    fn failed(&self) {
+        self.finite.store(false, Ordering::Relaxed);
     }
 
     fn offer(&self, zone: Zone) {
@@ -103,16 +125,9 @@ pub(crate) struct EarlyStep<'a, K> {
     buffers: &'a Buffers,
     kernel: &'a K,
     slices: usize,
-    /// The zone, and a bit per piece that holds a slice of it.
-    touched: Offered<Vec<u64>>,
-    /// Pieces handed out so far, those touched among them (may run past their count).
-    taken: AtomicUsize,
-    finite: AtomicBool,
-    /// Tests: every piece runs as soon as the zone is offered, on the thread that offers it,
-    /// so that a test sees pieces run whatever the machine's scheduling leaves the waiting
-    /// threads.
-    #[cfg(test)]
-    eagerly: bool,
+    /// The zone, a bit per piece that holds a slice of it, and the pieces handed out, those
+    /// touched among them.
+    touched: Handout<Vec<u64>>,
 }
 
 impl<'a, K> EarlyStep<'a, K>
@@ -127,28 +142,22 @@ where
             buffers,
             kernel,
             slices,
-            touched: Offered::new(),
-            taken: AtomicUsize::new(0),
-            finite: AtomicBool::new(true),
-            #[cfg(test)]
-            eagerly: false,
+            touched: Handout::new(),
         }
     }
 
     /// Tests: with `on`, every piece runs as soon as the zone is offered (see `eagerly`).
     #[cfg(test)]
-    pub fn eagerly(self, on: bool) -> Self {
-        Self {
-            eagerly: on,
-            ..self
-        }
+    pub fn eagerly(mut self, on: bool) -> Self {
+        self.touched.eagerly = on;
+        self
     }
 
     /// What was done: the pieces handed out that the zone does not touch, every one of them
     /// finished (the waiting threads finish theirs before the passes' call returns).
     pub fn done(self) -> Done {
         let pieces = self.slices.div_ceil(PIECE);
-        let taken = self.taken.into_inner().min(pieces);
+        let taken = self.touched.taken.into_inner().min(pieces);
         let ranges = match self.touched.marks.into_inner() {
             Some(touched) => (0..taken)
                 .filter(|&k| !is_set(&touched, k))
@@ -159,7 +168,7 @@ where
         Done {
             ranges,
             rows: Vec::new(),
-            finite: self.finite.into_inner(),
+            finite: self.touched.finite.into_inner(),
         }
     }
 
@@ -195,7 +204,7 @@ where
         };
         let pieces = self.slices.div_ceil(PIECE);
         loop {
-            let k = self.taken.fetch_add(1, Ordering::Relaxed);
+            let k = self.touched.next();
             if k >= pieces {
                 return false;
             }
@@ -212,7 +221,7 @@ where
                     .step(2, piece(k, self.slices), true, self.kernel)
             };
             if !finite {
-                self.finite.store(false, Ordering::Relaxed);
+                self.touched.failed();
             }
             return true;
         }
@@ -226,7 +235,7 @@ where
     fn offer(&self, zone: Zone) {
         self.touched.offer(zone);
         #[cfg(test)]
-        if self.eagerly {
+        if self.touched.eagerly {
             while self.run_one() {}
         }
     }
@@ -239,18 +248,12 @@ pub(crate) struct EarlyBlocks<'a> {
     step: NextStep<'a>,
     /// The blocks in the order they are handed out (see [`NextStep::block_order`]).
     order: Vec<usize>,
-    /// The zone, and a flag per block that holds a slice of it.
-    touched: Offered<Vec<bool>>,
-    /// Pieces handed out so far (may run past their count).
-    taken: AtomicUsize,
+    /// The zone, a flag per block that holds a slice of it, and the pieces handed out.
+    touched: Handout<Vec<bool>>,
     /// Per block, its runs of rows not yet written.
     rows_left: Vec<AtomicUsize>,
     /// The runs of slices summed and integrated, in no order.
     slices_done: Mutex<Vec<Range<usize>>>,
-    finite: AtomicBool,
-    /// Tests: as [`EarlyStep`]'s.
-    #[cfg(test)]
-    eagerly: bool,
 }
 
 impl<'a> EarlyBlocks<'a> {
@@ -259,23 +262,17 @@ impl<'a> EarlyBlocks<'a> {
         Self {
             order: step.block_order(),
             step,
-            touched: Offered::new(),
-            taken: AtomicUsize::new(0),
+            touched: Handout::new(),
             rows_left: (0..blocks).map(|_| AtomicUsize::new(BLOCK_PARTS)).collect(),
             slices_done: Mutex::new(Vec::new()),
-            finite: AtomicBool::new(true),
-            #[cfg(test)]
-            eagerly: false,
         }
     }
 
     /// Tests: with `on`, every piece runs as soon as the zone is offered.
     #[cfg(test)]
-    pub fn eagerly(self, on: bool) -> Self {
-        Self {
-            eagerly: on,
-            ..self
-        }
+    pub fn eagerly(mut self, on: bool) -> Self {
+        self.touched.eagerly = on;
+        self
     }
 
     /// What was done (the waiting threads finish their pieces before the passes' call
@@ -294,7 +291,7 @@ impl<'a> EarlyBlocks<'a> {
         Done {
             ranges,
             rows,
-            finite: self.finite.into_inner(),
+            finite: self.touched.finite.into_inner(),
         }
     }
 
@@ -321,7 +318,7 @@ impl Idle for EarlyBlocks<'_> {
         };
         let pieces = self.step.block_count() * 2 * BLOCK_PARTS;
         loop {
-            let t = self.taken.fetch_add(1, Ordering::Relaxed);
+            let t = self.touched.next();
             if t >= pieces {
                 return false;
             }
@@ -344,7 +341,7 @@ impl Idle for EarlyBlocks<'_> {
                 // writes them again; each run of slices is handed out once; they lie outside
                 // the zone, so nothing they read moves in this step.
                 if !unsafe { self.step.slices(run.clone()) } {
-                    self.finite.store(false, Ordering::Relaxed);
+                    self.touched.failed();
                 }
                 let mut done = self.slices_done.lock().unwrap_or_else(|e| e.into_inner());
                 done.push(run);
@@ -358,7 +355,7 @@ impl Beside for EarlyBlocks<'_> {
     fn offer(&self, zone: Zone) {
         self.touched.offer(zone);
         #[cfg(test)]
-        if self.eagerly {
+        if self.touched.eagerly {
             while self.run_one() {}
         }
     }
