@@ -302,23 +302,16 @@ impl Blocks {
         buffers: &Buffers,
         f: impl FnOnce(&Work<'_>) -> R,
     ) -> R {
-        // SAFETY: tasks read only rows that no task writes meanwhile (the module docs).
-        let view = unsafe { forces.view() };
-        let kernel = summing_run(isa, incidence, view, integrator);
+        let steps = BlockSteps::new(self, isa, springs, incidence, forces, integrator, buffers);
         let work = Work {
-            rows: &|j: usize, blocks: Range<usize>| {
-                let (first, end) = (self.rows[blocks.start], self.rows[blocks.end]);
-                // SAFETY: the schedule of the module docs: these rows and the positions they
-                // read are this task's alone while it runs.
-                unsafe {
-                    let out = forces.rows(first..end);
-                    kernels::spring_forces(isa, springs, buffers.positions(j - 1), first, out);
-                }
+            // SAFETY: the schedule of the module docs: these rows and the positions they read
+            // are this task's alone while it runs.
+            rows: &|j: usize, blocks: Range<usize>| unsafe {
+                steps.rows(j, self.rows[blocks.start]..self.rows[blocks.end]);
             },
             // SAFETY: as for the rows.
             slices: &|j: usize, blocks: Range<usize>| unsafe {
-                // Every step's positions as axes: the accumulation reads its own from them.
-                buffers.step(j, self.slices(blocks), true, &kernel)
+                steps.slices(j, self.slices(blocks))
             },
         };
         f(&work)
@@ -525,30 +518,29 @@ impl Begun {
     }
 }
 
-/// A scatter mesh's next step block by block, in pieces that self-collision's waiting threads
-/// take up beside its passes (see `crate::early`): runs of a block's force rows, computed
-/// from the step's new positions (`next`), and runs of its slices, summed and integrated into
-/// the next step's positions (`current`) and the deltas.
-pub(crate) struct NextStep<'a> {
+/// A scatter mesh's steps over a sweep's buffers (see `sweep::Buffers`), a run of force rows
+/// or of slices at a time: what a band of a sweep runs (see [`Blocks::sweep`]), and the pieces
+/// of the next step that self-collision's waiting threads take up beside its passes (step 2:
+/// see `crate::early`).
+pub(crate) struct BlockSteps<'a> {
     blocks: &'a Blocks,
     isa: InstructionSet,
     springs: &'a SpringTable,
     incidence: &'a IncidenceTable,
+    /// Where the forces go: a sweep's may be in its ring (see [`Forces::for_sweep`]).
     forces: Forces,
     integrator: &'a Integrator,
     buffers: &'a Buffers,
-    /// `forces` points into the spring forces this borrows.
-    _forces: std::marker::PhantomData<&'a mut SpringForces>,
 }
 
-impl<'a> NextStep<'a> {
+impl<'a> BlockSteps<'a> {
     #[allow(clippy::too_many_arguments)] // the step's inputs, passed on to its kernels
     pub(crate) fn new(
         blocks: &'a Blocks,
         isa: InstructionSet,
         springs: &'a SpringTable,
         incidence: &'a IncidenceTable,
-        spring_forces: &'a mut SpringForces,
+        forces: Forces,
         integrator: &'a Integrator,
         buffers: &'a Buffers,
     ) -> Self {
@@ -557,10 +549,9 @@ impl<'a> NextStep<'a> {
             isa,
             springs,
             incidence,
-            forces: Forces::new(spring_forces),
+            forces,
             integrator,
             buffers,
-            _forces: std::marker::PhantomData,
         }
     }
 
@@ -608,51 +599,43 @@ impl<'a> NextStep<'a> {
         self.blocks.first_block[slice] as usize..=Self::block_of(slice)
     }
 
-    /// Computes force rows `rows` of the step.
+    /// Computes force rows `rows` of step `j` (1-based) from the positions of step `j - 1`.
     ///
     /// # Safety
     /// While it runs, no other thread may read or write these rows, nor write the positions
-    /// of the step's ends (`next`).
-    pub(crate) unsafe fn rows(&self, rows: Range<usize>) {
+    /// of their springs' ends.
+    pub(crate) unsafe fn rows(&self, j: usize, rows: Range<usize>) {
         // SAFETY: the caller's guarantee.
         unsafe {
             let out = self.forces.rows(rows.clone());
-            let positions = self.buffers.positions(1);
+            let positions = self.buffers.positions(j - 1);
             kernels::spring_forces(self.isa, self.springs, positions, rows.start, out);
         }
     }
 
-    /// Sums and integrates `slices`; true if every new position is finite.
+    /// Sums and integrates `slices` of step `j`; true if every new position is finite.
     ///
     /// # Safety
-    /// Every force row these slices sum (of [`NextStep::summed_blocks`]) must be written, and
-    /// no thread may write it, nor touch these slices' outputs or write the positions their
-    /// springs read, while this runs.
-    pub(crate) unsafe fn slices(&self, slices: Range<usize>) -> bool {
+    /// Every force row these slices sum (of [`BlockSteps::summed_blocks`]) must be written,
+    /// and no thread may write it, nor touch these slices' outputs or write the positions
+    /// their springs read, while this runs (see `sweep::Buffers::step`).
+    pub(crate) unsafe fn slices(&self, j: usize, slices: Range<usize>) -> bool {
+        let (isa, incidence, integrator) = (self.isa, self.incidence, self.integrator);
         // SAFETY: the caller's guarantee.
         unsafe {
             let view = self.forces.view();
-            let kernel = summing_run(self.isa, self.incidence, view, self.integrator);
-            self.buffers.step(2, slices, true, &kernel)
+            let kernel = |positions: Positions<'_>, chunk: VertexChunk<'_>| {
+                // Every step's positions as axes: the accumulation reads its own from them.
+                let current = Positions {
+                    points: None,
+                    ..positions
+                };
+                kernels::accumulate_and_integrate(
+                    isa, incidence, view, integrator, current, None, chunk,
+                )
+            };
+            self.buffers.step(j, slices, true, &kernel)
         }
-    }
-}
-
-/// The fused summing and integration of a run of slices, as [`Buffers::step`] runs it, over
-/// the forces of `view`: nothing but the springs acts on the vertices, and the summing reads
-/// the positions as axes.
-fn summing_run<'a>(
-    isa: InstructionSet,
-    incidence: &'a IncidenceTable,
-    view: ForcesView<'a>,
-    integrator: &'a Integrator,
-) -> impl Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync + 'a {
-    move |positions, chunk| {
-        let current = Positions {
-            points: None,
-            ..positions
-        };
-        kernels::accumulate_and_integrate(isa, incidence, view, integrator, current, None, chunk)
     }
 }
 
@@ -674,9 +657,10 @@ pub(crate) fn runs(
     })
 }
 
-/// Scatter's spring forces as pointers that every band's task uses (see [`Forces::rows`]).
+/// Scatter's spring forces as pointers that every band's task uses (see [`Forces::rows`]), and
+/// the early step's pieces (see [`BlockSteps`]).
 #[derive(Clone, Copy)]
-struct Forces {
+pub(crate) struct Forces {
     axes: Option<[*mut Block; 3]>,
     points: Option<*mut [Point; LANES]>,
     /// Rows in the buffer.
@@ -688,7 +672,7 @@ unsafe impl Send for Forces {}
 unsafe impl Sync for Forces {}
 
 impl Forces {
-    fn new(spring_forces: &mut SpringForces) -> Self {
+    pub(crate) fn new(spring_forces: &mut SpringForces) -> Self {
         match spring_forces {
             SpringForces::Axes(axes) => Self {
                 rows: axes.blocks(),

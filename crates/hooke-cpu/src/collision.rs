@@ -95,12 +95,12 @@ impl CpuSolver {
                     .blocks
                     .as_ref()
                     .expect("only blocked scatter steps early");
-                let next = blocks::NextStep::new(
+                let next = blocks::BlockSteps::new(
                     blocks,
                     isa,
                     springs,
                     incidence,
-                    spring_forces,
+                    blocks::Forces::new(spring_forces),
                     &self.integrator,
                     buffers,
                 );

@@ -14,9 +14,9 @@
 //! ([`EarlyBlocks`]): a block outside the zone has its force rows computed, a run at a time,
 //! and its slices are summed and integrated once every row they sum is written. Every row of
 //! such a block is final: its springs' first ends lie outside the zone, which holds every
-//! vertex within two springs of one the passes may move, so neither end moves. The blocks are
-//! taken a band of the step at a time in turn (see `blocks::NextStep::block_order`). The next
-//! step then computes only the rows left, and sums only the slices left.
+//! vertex within two springs of one the passes may move, so neither end moves. The blocks
+//! are taken a band of the step at a time in turn (see `blocks::BlockSteps::block_order`).
+//! The next step then computes only the rows left, and sums only the slices left.
 //!
 //! Only within one `step(n)`, on 2 threads or more, on meshes of [`MIN_SLICES`] or more whose
 //! force pass reads the positions by axis (gather, or scatter block by block), and where
@@ -29,7 +29,7 @@ use std::sync::{Mutex, OnceLock};
 
 use hooke_core::selfcollide::{Beside, Idle, Zone};
 
-use crate::blocks::{NextStep, runs};
+use crate::blocks::{BlockSteps, runs};
 use crate::kernels::VertexChunk;
 use crate::layout::LANES;
 use crate::sweep::Buffers;
@@ -40,6 +40,10 @@ use crate::view::Positions;
 /// 2.08 and 2.105 by median with steps begun early against 1.995 and 2.005 without (two
 /// batches of runs), and 2.445-2.525 against 2.58-2.67 at 256^2 (8,192 slices).
 pub(crate) const MIN_SLICES: usize = 4096;
+
+/// The next step as a sweep's buffers number it (see `sweep::Buffers`): it reads this step's
+/// new positions (`next`) and writes its own into `current`.
+const NEXT: usize = 2;
 
 /// Slices a piece: about a microsecond of one thread's work at 512^2. Pieces are fixed runs
 /// of slices; one that holds a slice of the zone is left to the next step whole.
@@ -218,7 +222,7 @@ where
             // nothing it reads moves in this step.
             let finite = unsafe {
                 self.buffers
-                    .step(2, piece(k, self.slices), true, self.kernel)
+                    .step(NEXT, piece(k, self.slices), true, self.kernel)
             };
             if !finite {
                 self.touched.failed();
@@ -243,10 +247,10 @@ where
 
 /// A scatter mesh's next step, by block, offered to self-collision's waiting threads (see the
 /// module docs). Each block is [`BLOCK_PARTS`] runs of its force rows and as many of its
-/// slices, handed out in that order, block after block in [`NextStep::block_order`].
+/// slices, handed out in that order, block after block in [`BlockSteps::block_order`].
 pub(crate) struct EarlyBlocks<'a> {
-    step: NextStep<'a>,
-    /// The blocks in the order they are handed out (see [`NextStep::block_order`]).
+    step: BlockSteps<'a>,
+    /// The blocks in the order they are handed out (see [`BlockSteps::block_order`]).
     order: Vec<usize>,
     /// The zone, a flag per block that holds a slice of it, and the pieces handed out.
     touched: Handout<Vec<bool>>,
@@ -257,7 +261,7 @@ pub(crate) struct EarlyBlocks<'a> {
 }
 
 impl<'a> EarlyBlocks<'a> {
-    pub fn new(step: NextStep<'a>) -> Self {
+    pub fn new(step: BlockSteps<'a>) -> Self {
         let blocks = step.block_count();
         Self {
             order: step.block_order(),
@@ -298,7 +302,7 @@ impl<'a> EarlyBlocks<'a> {
     /// A flag per block that holds a slice of `zone`.
     fn touched_by(&self, zone: &Zone) -> Vec<bool> {
         let mut touched = vec![false; self.step.block_count()];
-        zone.each_place(|place| touched[NextStep::block_of(place as usize / LANES)] = true);
+        zone.each_place(|place| touched[BlockSteps::block_of(place as usize / LANES)] = true);
         touched
     }
 
@@ -330,7 +334,7 @@ impl Idle for EarlyBlocks<'_> {
                 // SAFETY: each run of rows is handed out once, and nothing else touches the
                 // forces while the passes run; the block lies outside the zone, so no end of
                 // its springs moves in this step.
-                unsafe { self.step.rows(run(self.step.rows_of(k), part)) };
+                unsafe { self.step.rows(NEXT, run(self.step.rows_of(k), part)) };
                 self.rows_left[k].fetch_sub(1, Ordering::Release);
                 return true;
             }
@@ -340,7 +344,7 @@ impl Idle for EarlyBlocks<'_> {
                 // SAFETY: the rows these slices sum are written (`summable`) and no thread
                 // writes them again; each run of slices is handed out once; they lie outside
                 // the zone, so nothing they read moves in this step.
-                if !unsafe { self.step.slices(run.clone()) } {
+                if !unsafe { self.step.slices(NEXT, run.clone()) } {
                     self.touched.failed();
                 }
                 let mut done = self.slices_done.lock().unwrap_or_else(|e| e.into_inner());
