@@ -62,12 +62,13 @@ pub const PATCH: usize = 64;
 /// tested), but more vertices are pushed past it and widen the suspects. It also bounds the
 /// zone the next step begins beside the passes outside of, so a smaller one leaves more of
 /// that step to begin early. A sixteenth since 2026-12-07: on an Intel Xeon VM, the bench's
-/// 512^2 sheet in contact stepped 1-10% faster by gather and 3-8% by scatter than with an
+/// 512^2 sheet in contact stepped 1-10% faster by gather and 2-8% by scatter than with an
 /// eighth (windows of 200 steps, the two alternating within one run), and `hooke bench`'s
-/// paired ratio at 512^2 by gather read 2.685 against 3.045 (medians of six runs each). A
-/// thirty-second stepped 1-4% faster again within a run, but read 2.84 in the bench. An
-/// eighth since 2026-12-03, a quarter before (see the performance log). The proof holds for
-/// any margin, so the moves are the same.
+/// paired ratio at 512^2 by gather read medians of 2.685 against 3.045 and 2.795 against
+/// 2.865 in two batches (six and eight runs each; by scatter the bench showed nothing either
+/// way). A thirty-second stepped 1-4% faster again within a run, but read 2.84 in the first
+/// batch. An eighth since 2026-12-03, a quarter before (see the performance log). The proof
+/// holds for any margin, so the moves are the same.
 pub const MARGIN: f32 = 0.0625;
 
 /// What [`Culling::prove`] showed of one step's positions.
