@@ -129,9 +129,8 @@ pub(crate) struct EarlyStep<'a, K> {
     buffers: &'a Buffers,
     kernel: &'a K,
     slices: usize,
-    /// The zone, a bit per piece that holds a slice of it, and the pieces handed out, those
-    /// touched among them.
-    touched: Handout<Vec<u64>>,
+    /// The pieces handed out, and the zone marked as a bit per piece that holds a slice of it.
+    handout: Handout<Vec<u64>>,
 }
 
 impl<'a, K> EarlyStep<'a, K>
@@ -146,14 +145,14 @@ where
             buffers,
             kernel,
             slices,
-            touched: Handout::new(),
+            handout: Handout::new(),
         }
     }
 
     /// Tests: with `on`, every piece runs as soon as the zone is offered (see `eagerly`).
     #[cfg(test)]
     pub fn eagerly(mut self, on: bool) -> Self {
-        self.touched.eagerly = on;
+        self.handout.eagerly = on;
         self
     }
 
@@ -161,8 +160,8 @@ where
     /// finished (the waiting threads finish theirs before the passes' call returns).
     pub fn done(self) -> Done {
         let pieces = self.slices.div_ceil(PIECE);
-        let taken = self.touched.taken.into_inner().min(pieces);
-        let ranges = match self.touched.marks.into_inner() {
+        let taken = self.handout.taken.into_inner().min(pieces);
+        let ranges = match self.handout.marks.into_inner() {
             Some(touched) => (0..taken)
                 .filter(|&k| !is_set(&touched, k))
                 .map(|k| piece(k, self.slices))
@@ -172,7 +171,7 @@ where
         Done {
             ranges,
             rows: Vec::new(),
-            finite: self.touched.finite.into_inner(),
+            finite: self.handout.finite.into_inner(),
         }
     }
 
@@ -202,13 +201,13 @@ where
     K: Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync,
 {
     fn run_one(&self) -> bool {
-        let touched = match self.touched.marks(|zone| self.touched_by(zone)) {
+        let touched = match self.handout.marks(|zone| self.touched_by(zone)) {
             Ok(touched) => touched,
             Err(marked) => return marked,
         };
         let pieces = self.slices.div_ceil(PIECE);
         loop {
-            let k = self.touched.next();
+            let k = self.handout.next();
             if k >= pieces {
                 return false;
             }
@@ -225,7 +224,7 @@ where
                     .step(NEXT, piece(k, self.slices), true, self.kernel)
             };
             if !finite {
-                self.touched.failed();
+                self.handout.failed();
             }
             return true;
         }
@@ -237,9 +236,9 @@ where
     K: Fn(Positions<'_>, VertexChunk<'_>) -> bool + Sync,
 {
     fn offer(&self, zone: Zone) {
-        self.touched.offer(zone);
+        self.handout.offer(zone);
         #[cfg(test)]
-        if self.touched.eagerly {
+        if self.handout.eagerly {
             while self.run_one() {}
         }
     }
@@ -252,8 +251,8 @@ pub(crate) struct EarlyBlocks<'a> {
     step: BlockSteps<'a>,
     /// The blocks in the order they are handed out (see [`BlockSteps::block_order`]).
     order: Vec<usize>,
-    /// The zone, a flag per block that holds a slice of it, and the pieces handed out.
-    touched: Handout<Vec<bool>>,
+    /// The pieces handed out, and the zone marked as a flag per block that holds a slice of it.
+    handout: Handout<Vec<bool>>,
     /// Per block, its runs of rows not yet written.
     rows_left: Vec<AtomicUsize>,
     /// The runs of slices summed and integrated, in no order.
@@ -266,7 +265,7 @@ impl<'a> EarlyBlocks<'a> {
         Self {
             order: step.block_order(),
             step,
-            touched: Handout::new(),
+            handout: Handout::new(),
             rows_left: (0..blocks).map(|_| AtomicUsize::new(BLOCK_PARTS)).collect(),
             slices_done: Mutex::new(Vec::new()),
         }
@@ -275,7 +274,7 @@ impl<'a> EarlyBlocks<'a> {
     /// Tests: with `on`, every piece runs as soon as the zone is offered.
     #[cfg(test)]
     pub fn eagerly(mut self, on: bool) -> Self {
-        self.touched.eagerly = on;
+        self.handout.eagerly = on;
         self
     }
 
@@ -295,7 +294,7 @@ impl<'a> EarlyBlocks<'a> {
         Done {
             ranges,
             rows,
-            finite: self.touched.finite.into_inner(),
+            finite: self.handout.finite.into_inner(),
         }
     }
 
@@ -316,13 +315,13 @@ impl<'a> EarlyBlocks<'a> {
 
 impl Idle for EarlyBlocks<'_> {
     fn run_one(&self) -> bool {
-        let touched = match self.touched.marks(|zone| self.touched_by(zone)) {
+        let touched = match self.handout.marks(|zone| self.touched_by(zone)) {
             Ok(touched) => touched,
             Err(marked) => return marked,
         };
         let pieces = self.step.block_count() * 2 * BLOCK_PARTS;
         loop {
-            let t = self.touched.next();
+            let t = self.handout.next();
             if t >= pieces {
                 return false;
             }
@@ -345,7 +344,7 @@ impl Idle for EarlyBlocks<'_> {
                 // writes them again; each run of slices is handed out once; they lie outside
                 // the zone, so nothing they read moves in this step.
                 if !unsafe { self.step.slices(NEXT, run.clone()) } {
-                    self.touched.failed();
+                    self.handout.failed();
                 }
                 let mut done = self.slices_done.lock().unwrap_or_else(|e| e.into_inner());
                 done.push(run);
@@ -357,9 +356,9 @@ impl Idle for EarlyBlocks<'_> {
 
 impl Beside for EarlyBlocks<'_> {
     fn offer(&self, zone: Zone) {
-        self.touched.offer(zone);
+        self.handout.offer(zone);
         #[cfg(test)]
-        if self.touched.eagerly {
+        if self.handout.eagerly {
             while self.run_one() {}
         }
     }
