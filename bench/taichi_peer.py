@@ -14,14 +14,16 @@ Methods, each written the way a Taichi user would:
 
 Run it with `./run peer-taichi` (which installs Taichi into .venv-taichi), or directly:
 `python bench/taichi_peer.py --sizes 128,256,512 --steps 300`. It prints a Markdown table of
-ms/step: the median over `--repeats` timed blocks of `--steps` steps, each block ending in
-`ti.sync()`, after a warm-up block that includes compilation.
+ms/step (or, with `--format json`, the same as JSON, which bench/versus_taichi.py reads): the
+median over `--repeats` timed blocks of `--steps` steps, each block ending in `ti.sync()`,
+after a warm-up block that includes compilation.
 """
 # No `from __future__ import annotations`: Taichi reads its kernels' annotations as objects.
 # Those annotations (`ti.template()`) are Taichi's DSL, not Python types; mypy checks the rest.
 # mypy: disable-error-code="valid-type,untyped-decorator,no-untyped-def"
 
 import argparse
+import json
 import statistics
 import sys
 import time
@@ -161,6 +163,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200, help="steps per timed block")
     parser.add_argument("--repeats", type=int, default=5, help="timed blocks per method")
     parser.add_argument("--arch", default="vulkan", choices=["vulkan", "cpu", "cuda"])
+    parser.add_argument("--format", default="table", choices=["table", "json"])
     args = parser.parse_args()
     ti.init(arch=getattr(ti, args.arch), default_fp=ti.f32, offline_cache=True)
     # Taichi falls back to its CPU backend, with only a warning, when the one asked for is
@@ -171,9 +174,12 @@ def main() -> None:
             f"taichi_peer.py: asked for --arch {args.arch}, but Taichi runs on {running}"
             " (is the driver installed? `./run peer-taichi` installs Mesa's Vulkan driver)"
         )
-    print(f"taichi {ti.__version__} on {running}; median ms/step of {args.repeats} blocks")
-    print("| mesh | method | springs | ms/step (median) | range | dispatches |")
-    print("|---|---|---|---|---|---|")
+    table = args.format == "table"
+    if table:
+        print(f"taichi {ti.__version__} on {running}; median ms/step of {args.repeats} blocks")
+        print("| mesh | method | springs | ms/step (median) | range | dispatches |")
+        print("|---|---|---|---|---|---|")
+    rows = []
     for n in (int(s) for s in args.sizes.split(",")):
         for method in args.methods.split(","):
             sheet: Gather | Scatter = Gather(n) if method == "gather" else Scatter(n)
@@ -181,11 +187,24 @@ def main() -> None:
             x = sheet.x.to_numpy()
             if not np.isfinite(x).all():
                 raise SystemExit(f"{method} at {n}^2 went non-finite")
-            print(
-                f"| grid {n}^2 | {method} | {sheet.spring_count} | {statistics.median(times):.3f}"
-                f" | {min(times):.3f}-{max(times):.3f} | {sheet.dispatches()} |",
-                flush=True,
-            )
+            row = {
+                "mesh": f"grid {n}^2",
+                "method": method,
+                "springs": sheet.spring_count,
+                "ms_per_step": statistics.median(times),
+                "blocks_ms": times,
+                "dispatches": sheet.dispatches(),
+            }
+            rows.append(row)
+            if table:
+                print(
+                    f"| {row['mesh']} | {method} | {sheet.spring_count} | {row['ms_per_step']:.3f}"
+                    f" | {min(times):.3f}-{max(times):.3f} | {sheet.dispatches()} |",
+                    flush=True,
+                )
+    if not table:
+        report = {"taichi": ti.__version__, "arch": running, "rows": rows}
+        print(json.dumps(report, indent=2))
 
 
 if __name__ == "__main__":
