@@ -121,11 +121,25 @@ def run_json(command: list[str]) -> dict[str, object]:
     return report
 
 
-def rows_of(report: dict[str, object]) -> list[dict[str, object]]:
+def timings(report: dict[str, object], field: str, source: str) -> Timings:
+    """A report's rows as timings: each row's `mesh`, `method` and the milliseconds in
+    `field`. A row without them is an error naming the field and the program."""
     rows = report.get("rows")
     if not isinstance(rows, list):
-        raise SystemExit("versus_taichi.py: a report without rows")
-    return [row for row in rows if isinstance(row, dict)]
+        raise SystemExit(f"versus_taichi.py: {source} printed no `rows`")
+    found: Timings = {}
+    for row in rows:
+        mesh, method, ms = (
+            (row.get("mesh"), row.get("method"), row.get(field))
+            if isinstance(row, dict)
+            else (None, None, None)
+        )
+        if not isinstance(mesh, str) or not isinstance(method, str):
+            raise SystemExit(f"versus_taichi.py: a row of {source} without `mesh` or `method`")
+        if not isinstance(ms, int | float):
+            raise SystemExit(f"versus_taichi.py: {source}'s {mesh} {method} has no `{field}`")
+        found[(mesh, method)] = float(ms)
+    return found
 
 
 def hooke_round(args: argparse.Namespace) -> Timings:
@@ -134,10 +148,7 @@ def hooke_round(args: argparse.Namespace) -> Timings:
         *["--irregular", "0", "--shuffled", "0", "--gpu-methods", args.methods],
         *["--steps", str(args.steps), "--format", "json"],
     ]
-    return {
-        (str(row["mesh"]), str(row["method"])): float(str(row["total_ms"]))
-        for row in rows_of(run_json(command))
-    }
+    return timings(run_json(command), "total_ms", "hooke bench")
 
 
 def peer_round(args: argparse.Namespace, methods: str) -> Timings:
@@ -146,10 +157,7 @@ def peer_round(args: argparse.Namespace, methods: str) -> Timings:
         *["--methods", methods, "--steps", str(args.steps)],
         *["--repeats", str(args.repeats), "--format", "json"],
     ]
-    return {
-        (str(row["mesh"]), str(row["method"])): float(str(row["ms_per_step"]))
-        for row in rows_of(run_json(command))
-    }
+    return timings(run_json(command), "ms_per_step", "the Taichi peer")
 
 
 def main(argv: list[str] | None = None) -> None:

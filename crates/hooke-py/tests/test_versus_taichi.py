@@ -44,6 +44,14 @@ def test_a_pair_missing_from_a_round_is_an_error() -> None:
         versus_taichi.compare(hooke, taichi)
 
 
+def test_a_report_row_without_its_timing_names_the_field() -> None:
+    report: dict[str, object] = {"rows": [{"mesh": "grid 8^2", "method": "gather"}]}
+    with pytest.raises(SystemExit, match="the peer's grid 8\\^2 gather has no `ms_per_step`"):
+        versus_taichi.timings(report, "ms_per_step", "the peer")
+    with pytest.raises(SystemExit, match="the peer printed no `rows`"):
+        versus_taichi.timings({}, "ms_per_step", "the peer")
+
+
 # Stands in for taichi_peer.py: its arguments, its banner line, and JSON of its shape, every
 # method taking 1 s a step (so hooke's speed-up is large in every round).
 FAKE_PEER = """
