@@ -187,8 +187,9 @@ def main(argv: list[str] | None = None) -> None:
         comparisons = compare(hooke_rounds, peer_rounds)
     except ValueError as error:
         raise SystemExit(f"versus_taichi.py: {error}") from None
+    rounds = f"{args.rounds} round{'' if args.rounds == 1 else 's'}"
     print(
-        f"hooke's GPU methods against Taichi's on the same driver, {args.rounds} rounds of "
+        f"hooke's GPU methods against Taichi's on the same driver, {rounds} of "
         f"{args.steps} steps; speed-up: Taichi's time over hooke's (target {TARGET:g})"
     )
     print(table(comparisons))
