@@ -103,8 +103,8 @@ def table(comparisons: list[Comparison], target: float = TARGET) -> str:
 
 
 def run_json(command: list[str]) -> dict[str, object]:
-    """Runs `command` and reads the JSON object its standard output ends with (Taichi prints a
-    banner line on import before it)."""
+    """Runs `command` and reads the JSON object its standard output ends with (Taichi prints
+    lines of its own before it, on import and on start)."""
     result = subprocess.run(command, capture_output=True, text=True, check=False)
     shown = " ".join(command)
     if result.returncode != 0:
@@ -129,11 +129,8 @@ def timings(report: dict[str, object], field: str, source: str) -> Timings:
         raise SystemExit(f"versus_taichi.py: {source} printed no `rows`")
     found: Timings = {}
     for row in rows:
-        mesh, method, ms = (
-            (row.get("mesh"), row.get("method"), row.get(field))
-            if isinstance(row, dict)
-            else (None, None, None)
-        )
+        fields = row if isinstance(row, dict) else {}
+        mesh, method, ms = fields.get("mesh"), fields.get("method"), fields.get(field)
         if not isinstance(mesh, str) or not isinstance(method, str):
             raise SystemExit(f"versus_taichi.py: a row of {source} without `mesh` or `method`")
         if not isinstance(ms, int | float):
